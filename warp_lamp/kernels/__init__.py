@@ -1,0 +1,1 @@
+"""Warp functions and kernels of warp_lamp (no Python API here)."""

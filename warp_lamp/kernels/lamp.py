@@ -1,0 +1,175 @@
+"""Shining-lamp kernels: a depth pass (one thread per sphere) and a count scatter (one thread per cell).
+
+Frame: positions minus `origin` are the frame coordinates. The grid that looks along axis a spans the
+transverse axes u = (a+1)%3 and v = (a+2)%3; its cells are [corner_u + i h_u, ...) x [corner_v + j h_v, ...)
+in frame coordinates, i < n_u, j < n_v, stored row-major (j * n_u + i) from `offset[a]`. Each cell holds two
+keys: [2 c] for the low lamp (at minus infinity, shining toward +a) and [2 c + 1] for the high lamp. Both
+are resolved with atomic_min: the high lamp keys negated depths, so that one identity (EMPTY_KEY) and one
+tie rule (lowest id wins) serve both sides.
+"""
+
+import warp as wp
+
+from warp_lamp.kernels.footprint import EMPTY_KEY, cell_span, key_owner, pack_key, rect_gap, veltkamp_round26
+
+# fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
+# the last bit and CPU and GPU owners stop being bitwise equal.
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+
+DIAG_INVALID = wp.constant(0)
+DIAG_OUTSIDE = wp.constant(1)
+
+
+@wp.func
+def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
+    # Read before the atomic: a losing candidate costs a load instead of an L2 atomic round trip.
+    if key < keys[slot]:
+        wp.atomic_min(keys, slot, key)
+
+
+@wp.kernel(enable_backward=False)
+def lamp_clear(
+    n_slots: wp.int32,
+    n_counts: wp.int32,
+    # outputs
+    keys: wp.array[wp.uint64],
+    counts: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+):
+    """One launch resets everything an update writes (fewer graph nodes than three fills)."""
+    t = wp.tid()
+    if t < n_slots:
+        keys[t] = EMPTY_KEY
+    if t < n_counts:
+        counts[t] = 0
+    if t < diag.shape[0]:
+        diag[t] = 0
+
+
+@wp.kernel(enable_backward=False)
+def lamp_depth(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: wp.int32,
+    lamp_mask: wp.int32,
+    # outputs
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
+):
+    pid = wp.tid()
+    if active.shape[0] > 0:
+        if active[pid] == 0:
+            return
+    p = positions[pid] - origin
+    r = radii[pid]
+    # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
+    finite = wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r)
+    if not (finite and r > 0.0):
+        wp.atomic_add(diag, DIAG_INVALID, 1)
+        return
+    r2 = r * r
+    outside = int(0)
+    for a in range(3):
+        lo_on = (lamp_mask >> (2 * a)) & 1
+        hi_on = (lamp_mask >> (2 * a + 1)) & 1
+        if lo_on + hi_on == 0:
+            continue
+        pu = p[(a + 1) % 3] - corner_u[a]
+        pv = p[(a + 2) % 3] - corner_v[a]
+        pd = p[a]
+        hu = h_u[a]
+        hv = h_v[a]
+        nu = n_u[a]
+        nv = n_v[a]
+        if pu - r < 0.0 or pv - r < 0.0 or pu + r > hu * float(nu) or pv + r > hv * float(nv):
+            outside = 1
+        base = offset[a]
+        rows = cell_span(pv - r, pv + r, hv, nv)
+        for j in range(rows[0], rows[1] + 1):
+            dv = float(0.0)
+            if criterion == 1:
+                dv = (float(j) + 0.5) * hv - pv
+            else:
+                dv = rect_gap(pv, float(j) * hv, float(j + 1) * hv)
+            rem = r2 - dv * dv
+            if rem < 0.0:
+                continue
+            w = wp.sqrt(rem)
+            cols = cell_span(pu - w, pu + w, hu, nu)
+            for i in range(cols[0], cols[1] + 1):
+                du = float(0.0)
+                if criterion == 1:
+                    du = (float(i) + 0.5) * hu - pu
+                else:
+                    du = rect_gap(pu, float(i) * hu, float(i + 1) * hu)
+                d2 = du * du + dv * dv
+                if d2 <= r2:
+                    depth_lo = pd
+                    depth_hi = pd
+                    if criterion == 1:
+                        s = wp.sqrt(r2 - d2)
+                        depth_lo = pd - s
+                        depth_hi = pd + s
+                    slot = 2 * (base + j * nu + i)
+                    if lo_on != 0:
+                        offer(keys, slot, pack_key(depth_lo, pid))
+                    if hi_on != 0:
+                        offer(keys, slot + 1, pack_key(-depth_hi, pid))
+    if outside != 0:
+        wp.atomic_add(diag, DIAG_OUTSIDE, 1)
+
+
+@wp.kernel(enable_backward=False)
+def lamp_scatter(
+    keys: wp.array[wp.uint64],
+    offset: wp.vec3i,
+    # outputs
+    counts: wp.array[wp.int32],
+):
+    """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
+    the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
+    c = wp.tid()
+    a = int(0)
+    if c >= offset[2]:
+        a = 2
+    elif c >= offset[1]:
+        a = 1
+    low = keys[2 * c]
+    high = keys[2 * c + 1]
+    if low != EMPTY_KEY:
+        wp.atomic_add(counts, 3 * key_owner(low) + a, 1)
+    if high != EMPTY_KEY:
+        wp.atomic_add(counts, 3 * key_owner(high) + a, -1)
+
+
+@wp.kernel(enable_backward=False)
+def lamp_add_forces(
+    counts: wp.array[wp.int32],
+    area: wp.vec3d,
+    pressure_const: wp.vec3d,
+    pressure_arr: wp.array[wp.float32],
+    # outputs
+    forces: wp.array[wp.vec3],
+):
+    """forces[i] += P_a A_a count[i, a]. P_a A_a is rounded to 26 bits so that the float64 product with any
+    count is exact: float32 forces are then the correctly rounded values of lamp_forces' float64 forces."""
+    i = wp.tid()
+    p = pressure_const
+    if pressure_arr.shape[0] == 1:
+        p = wp.vec3d(wp.float64(pressure_arr[0]))
+    elif pressure_arr.shape[0] >= 3:
+        p = wp.vec3d(wp.float64(pressure_arr[0]), wp.float64(pressure_arr[1]), wp.float64(pressure_arr[2]))
+    f = wp.vec3(0.0)
+    for a in range(3):
+        pa = veltkamp_round26(p[a] * area[a])
+        f[a] = wp.float32(pa * wp.float64(counts[3 * i + a]))
+    forces[i] = forces[i] + f

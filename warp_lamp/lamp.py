@@ -1,0 +1,387 @@
+"""Shining-lamp pressure boundary (Potyondy, PFC3D memo): Python API over the kernels in ``kernels/lamp.py``."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warp_lamp.grid import LampGrid
+from warp_lamp.kernels import lamp as K
+from warp_lamp.validate import check_particles, check_pressure
+
+__all__ = ["LAMPS", "LampDiagnostics", "ShiningLamp", "lamp_forces", "lamp_mask", "lamp_solve", "pressure_area"]
+
+#: Lamp names in bit order: "-x" is the lamp at minus infinity on x, shining toward +x.
+LAMPS = ("-x", "+x", "-y", "+y", "-z", "+z")
+_EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
+_N_DIAG = 4
+
+
+def lamp_mask(lamps) -> int:
+    """Bit mask of the lamps that are on: ``"all"``, one name, or any collection of names from :data:`LAMPS`."""
+    if isinstance(lamps, str):
+        lamps = LAMPS if lamps == "all" else (lamps,)
+    if not isinstance(lamps, Iterable):
+        raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {lamps!r}")
+    mask = 0
+    for name in lamps:
+        if name not in LAMPS:
+            raise ValueError(f"lamps: unknown lamp {name!r}; expected 'all' or names from {LAMPS}")
+        mask |= 1 << LAMPS.index(name)
+    return mask
+
+
+def _check_criterion(criterion) -> int:
+    if criterion not in (0, 1) or isinstance(criterion, bool):
+        raise ValueError(f"criterion: expected 0 (cell overlaps disk) or 1 (cell centre ray), got {criterion!r}")
+    return int(criterion)
+
+
+def _round26(x: np.ndarray) -> np.ndarray:
+    t = x * 134217729.0
+    return t - (t - x)
+
+
+def pressure_area(pressure, grid: LampGrid) -> np.ndarray:
+    """Force per lit cell on each axis [N], shape (3,): P_a times the cell area of grid a.
+
+    Rounded to 26 significant bits (relative change below 1.5e-8), so that P_a A_a times any cell count is
+    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation.
+    """
+    return _round26(check_pressure(pressure) * grid.cell_area)
+
+
+def _decode_depth(keys: np.ndarray) -> np.ndarray:
+    b = (keys >> np.uint64(32)).astype(np.uint32)
+    bits = np.where(b & np.uint32(0x80000000), b ^ np.uint32(0x80000000), ~b)
+    return bits.view(np.float32).astype(np.float64)
+
+
+@dataclass
+class LampDiagnostics:
+    """What the last update found; built on demand from device arrays, outside the hot path.
+
+    Attributes:
+        counts: Signed lit-cell counts per particle and axis, shape (N, 3), int64 (+1 per low-lamp cell,
+            -1 per high-lamp cell).
+        surface: Whether each particle is lit by any lamp that is on, shape (N,).
+        owners: Per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v).
+        depths: Per lamp name, the global coordinate along the lamp's axis where its ray meets its owner [m]
+            (NaN where unlit), shape (n_u, n_v).
+        lit: Per lamp name, the number of lit cells.
+        invalid: Particles skipped as invalid (non-finite position or radius, radius <= 0).
+        outside: Particles whose projected disk pokes outside at least one grid.
+        force: Resultant force [N], shape (3,), when a pressure was given.
+        moment: Resultant moment about ``moment_origin`` [N m], shape (3,), when positions and pressure were given.
+        moment_origin: Point the moment is taken about [m] (the mean active particle centre by default).
+    """
+
+    counts: np.ndarray
+    surface: np.ndarray
+    owners: dict
+    depths: dict
+    lit: dict
+    invalid: int
+    outside: int
+    force: np.ndarray | None = None
+    moment: np.ndarray | None = None
+    moment_origin: np.ndarray | None = None
+
+
+class ShiningLamp:
+    """Shining-lamp pressure boundary for Warp particle simulators: arrays in, forces added in place.
+
+    ``update`` finds which particle each lamp cell lights and stores signed cell counts per particle;
+    ``add_forces`` adds P_a A_a count into a simulator's force array; ``apply`` does both. None of them
+    allocates (after the first update at a given particle count, or after :meth:`reserve`), synchronises or
+    reads device data on the host, so they can be recorded in a CUDA graph with ``wp.ScopedCapture``. Invalid
+    particles (non-finite, radius <= 0) are skipped and counted in :meth:`diagnostics`, never raised.
+
+    With all six lamps on, the counts of each axis sum to exactly zero, so the forces balance exactly. With a
+    subset (``lamps``), the balance holds only on axes whose two lamps are both on.
+    """
+
+    def __init__(self, grid: LampGrid, *, criterion: int = 1, lamps="all", device=None):
+        """Allocate the per-cell arrays of ``grid`` on ``device``.
+
+        Args:
+            grid: The lamp grids.
+            criterion: 1, a cell is lit where its centre ray meets the sphere (depth where the ray enters for
+                the low lamp, leaves for the high lamp); 0, where the cell rectangle meets the projected disk
+                (depth of the sphere centre on both sides). The memo's ``sl_ic``.
+            lamps: "all", or names from :data:`LAMPS`.
+            device: Warp device; the current default when None.
+        """
+        if not isinstance(grid, LampGrid):
+            raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+        self.grid = grid
+        self.criterion = _check_criterion(criterion)
+        self.lamp_mask = lamp_mask(lamps)
+        self.device = wp.get_device(device)
+        f = grid.frame()
+        self._corner_u = wp.vec3(*f["corner_u"])
+        self._corner_v = wp.vec3(*f["corner_v"])
+        self._h_u = wp.vec3(*f["h_u"])
+        self._h_v = wp.vec3(*f["h_v"])
+        self._n_u = wp.vec3i(*(int(x) for x in f["n_u"]))
+        self._n_v = wp.vec3i(*(int(x) for x in f["n_v"]))
+        self._offset = wp.vec3i(*(int(x) for x in f["offset"]))
+        self._origin = wp.vec3(*grid.origin.astype(np.float32))
+        self._area = wp.vec3d(*grid.cell_area)
+        self._n_cells = grid.n_cells
+        d = self.device
+        self.keys = wp.full(2 * self._n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
+        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        self.counts = wp.zeros(0, dtype=wp.int32, device=d)
+        self._no_active = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
+        self.n = 0
+
+    def reserve(self, n: int) -> None:
+        """Make room for ``n`` particles now, so that a later captured update need not allocate."""
+        if 3 * n > self.counts.shape[0]:
+            if self.device.is_cuda and self.device.is_capturing:
+                raise RuntimeError(
+                    f"positions: {n} particles exceed the {self.counts.shape[0] // 3} reserved; call "
+                    "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
+                )
+            self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
+
+    def _check_array(self, name, arr, dtype, n=None):
+        if not isinstance(arr, wp.array):
+            raise TypeError(f"{name}: expected a warp array of {dtype.__name__}, got {type(arr).__name__}")
+        if arr.dtype != dtype:
+            raise TypeError(f"{name}: expected dtype {dtype.__name__}, got {getattr(arr.dtype, '__name__', arr.dtype)}")
+        if arr.ndim != 1:
+            raise ValueError(f"{name}: expected a 1-D array, got shape {arr.shape}")
+        if arr.device != self.device:
+            raise ValueError(f"{name}: on device {arr.device}, the lamp is on {self.device}")
+        if n is not None and arr.shape[0] < n:
+            raise ValueError(f"{name}: has {arr.shape[0]} entries, need {n}")
+        if not arr.is_contiguous:
+            raise ValueError(f"{name}: must be contiguous")
+
+    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None) -> None:
+        """Recompute which particle each cell lights, and each particle's signed cell counts.
+
+        Args:
+            positions: Particle centres [m], warp array of vec3 (float32), shape (N,), on the lamp's device.
+            radii: Particle radii [m], warp array of float32, shape (N,).
+            active: Optional warp array of int32, shape (N,): 0 makes a particle invisible (no shadow, no force).
+        """
+        self._update(positions, radii, active, self._origin)
+
+    def _update(self, positions, radii, active, origin) -> None:
+        self._check_array("positions", positions, wp.vec3)
+        n = positions.shape[0]
+        self._check_array("radii", radii, wp.float32, n)
+        if active is None:
+            active = self._no_active
+        else:
+            self._check_array("active", active, wp.int32, n)
+        self.reserve(n)
+        self.n = n
+        d = self.device
+        wp.launch(
+            K.lamp_clear,
+            dim=max(2 * self._n_cells, 3 * n, _N_DIAG),
+            inputs=[2 * self._n_cells, 3 * n],
+            outputs=[self.keys, self.counts, self.diag],
+            device=d,
+        )
+        if n > 0:
+            wp.launch(
+                K.lamp_depth,
+                dim=n,
+                inputs=[
+                    positions,
+                    radii,
+                    active,
+                    origin,
+                    self._corner_u,
+                    self._corner_v,
+                    self._h_u,
+                    self._h_v,
+                    self._n_u,
+                    self._n_v,
+                    self._offset,
+                    self.criterion,
+                    self.lamp_mask,
+                ],
+                outputs=[self.keys, self.diag],
+                device=d,
+            )
+            wp.launch(
+                K.lamp_scatter, dim=self._n_cells, inputs=[self.keys, self._offset], outputs=[self.counts], device=d
+            )
+
+    def add_forces(self, forces: wp.array, pressure) -> None:
+        """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.
+
+        Args:
+            forces: Simulator force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
+            pressure: Fluid pressure [Pa]: a number, three numbers (Px, Py, Pz), or a warp float32 array of 1 or 3
+                values on the device (read when the kernel runs, so a captured graph sees its current value).
+        """
+        self._check_array("forces", forces, wp.vec3, self.n)
+        const = wp.vec3d(0.0, 0.0, 0.0)
+        arr = self._no_pressure
+        if isinstance(pressure, wp.array):
+            self._check_array("pressure", pressure, wp.float32)
+            if pressure.shape[0] not in (1, 3):
+                raise ValueError(f"pressure: a device array must hold 1 or 3 values, got {pressure.shape[0]}")
+            arr = pressure
+        else:
+            const = wp.vec3d(*check_pressure(pressure))
+        if self.n > 0:
+            wp.launch(
+                K.lamp_add_forces,
+                dim=self.n,
+                inputs=[self.counts, self._area, const, arr],
+                outputs=[forces],
+                device=self.device,
+            )
+
+    def apply(self, positions: wp.array, radii: wp.array, forces: wp.array, pressure, *, active=None) -> None:
+        """``update`` then ``add_forces``; arguments as there."""
+        self.update(positions, radii, active)
+        self.add_forces(forces, pressure)
+
+    def counts_numpy(self) -> np.ndarray:
+        """Signed lit-cell counts of the last update, shape (N, 3), int64 (copies to the host)."""
+        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3).astype(np.int64)
+
+    def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> LampDiagnostics:
+        """Surface flags, owner and depth maps, lit cells, skip counters, and resultants (host copies).
+
+        Args:
+            positions: Particle centres [m], shape (N, 3) (numpy or warp), for the resultant moment.
+            pressure: Pressure [Pa] (a number or three), for the resultant force and moment.
+            moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
+        """
+        g = self.grid
+        keys = self.keys.numpy()
+        diag = self.diag.numpy()
+        counts = self.counts_numpy()
+        surface = np.zeros(self.n, dtype=bool)
+        owners, depths, lit = {}, {}, {}
+        for a in range(3):
+            nu, nv = (int(x) for x in g.counts[a])
+            o = int(g.offsets[a])
+            for side in range(2):
+                name = LAMPS[2 * a + side]
+                k = keys[2 * o + side : 2 * (o + nu * nv) : 2]
+                hit = k != _EMPTY
+                own = np.where(hit, (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
+                dep = _decode_depth(k) * (1.0 if side == 0 else -1.0) + g.origin[a]
+                owners[name] = own.reshape(nv, nu).T
+                depths[name] = np.where(hit, dep, np.nan).reshape(nv, nu).T
+                lit[name] = int(hit.sum())
+                surface[own[hit]] = True
+        out = LampDiagnostics(counts, surface, owners, depths, lit, int(diag[0]), int(diag[1]))
+        if pressure is not None:
+            f = counts * pressure_area(pressure, g)
+            out.force = f.sum(axis=0)
+            if positions is not None:
+                x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
+                x = np.asarray(x, dtype=np.float64)[: self.n]
+                if moment_origin is None:
+                    moment_origin = x[surface].mean(axis=0) if surface.any() else np.zeros(3)
+                out.moment_origin = np.asarray(moment_origin, dtype=np.float64)
+                out.moment = np.cross(x - out.moment_origin, f).sum(axis=0)
+        return out
+
+
+def lamp_solve(
+    centers,
+    radii,
+    *,
+    grid: LampGrid | None = None,
+    cells_per_diameter: float = 4,
+    criterion: int = 1,
+    lamps="all",
+    active=None,
+    device=None,
+) -> ShiningLamp:
+    """Run one update on host data and return the lamp, for :meth:`ShiningLamp.diagnostics` and counts.
+
+    Arguments as for :func:`lamp_forces`. The positions are taken relative to ``grid.origin`` in float64
+    before the cast to float32; pass ``centers`` to ``diagnostics`` for the moment, and ``grid.origin`` is
+    already accounted for there.
+    """
+    c, r = check_particles(centers, radii)
+    criterion = _check_criterion(criterion)
+    lamp_mask(lamps)
+    n = c.shape[0]
+    mask = None
+    if active is not None:
+        mask = np.asarray(active)
+        if mask.shape != (n,):
+            raise ValueError(f"active: expected shape ({n},), got {mask.shape}")
+        mask = (mask != 0).astype(np.int32)
+    if grid is None:
+        if n == 0:
+            raise ValueError("centers: no particles to fit a default grid to; pass grid=")
+        grid = LampGrid.enclosing(c, r, cells_per_diameter)
+    elif not isinstance(grid, LampGrid):
+        raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+    device = wp.get_device(device)
+    lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device)
+    local = (c - grid.origin).astype(np.float32)
+    pos = wp.array(local, dtype=wp.vec3, device=device)
+    rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
+    act = None if mask is None else wp.array(mask, dtype=wp.int32, device=device)
+    lamp._update(pos, rad, act, wp.vec3(0.0, 0.0, 0.0))
+    return lamp
+
+
+def lamp_forces(
+    centers,
+    radii,
+    pressure,
+    *,
+    grid: LampGrid | None = None,
+    cells_per_diameter: float = 4,
+    criterion: int = 1,
+    lamps="all",
+    active=None,
+    device=None,
+) -> np.ndarray:
+    """Shining-lamp forces on a body of spheres under fluid pressure.
+
+    Each cell of the three lamp grids shines from both ends of its axis; the first sphere its ray meets takes
+    P_a A_cell along the ray, at its centre. Opposite lamps light the same cells, so with all six lamps on the
+    forces sum to exactly zero on every axis; with a subset of lamps only axes whose two lamps are on balance.
+
+    Args:
+        centers: Particle centres [m], shape (N, 3), float64 welcome: the grid origin is subtracted in float64
+            before the cast to float32, so a body far from the origin gets the same forces as near it.
+        radii: Particle radii [m], shape (N,), or one number for all.
+        pressure: Fluid pressure [Pa], one number or (Px, Py, Pz) for polyaxial loading.
+        grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter``.
+        cells_per_diameter: Cells per mean particle diameter for the default grid.
+        criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk.
+        lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
+        active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
+        device: Warp device; the current default when None.
+
+    Returns:
+        Forces [N] (units of pressure times length squared), shape (N, 3), float64.
+    """
+    p = check_pressure(pressure)
+    if grid is None and len(check_particles(centers, radii)[1]) == 0:
+        return np.zeros((0, 3))  # no particles, nothing to fit a grid to, no forces
+    lamp = lamp_solve(
+        centers,
+        radii,
+        grid=grid,
+        cells_per_diameter=cells_per_diameter,
+        criterion=criterion,
+        lamps=lamps,
+        active=active,
+        device=device,
+    )
+    return lamp.counts_numpy() * pressure_area(p, lamp.grid)
