@@ -17,9 +17,9 @@ def _run(args) -> int:
     wp.init()
     from warp_lamp import LampGrid, ShiningLamp
     from warp_lamp.lamp import pressure_area
-    from warp_lamp.scenes import scene_lattice_ball
+    from warp_lamp.scenes import scene_sphere_specimen
 
-    scene = scene_lattice_ball()
+    scene = scene_sphere_specimen()
     device = wp.get_device(args.device)
     grid = LampGrid.enclosing(scene.centers, scene.radii, args.cells_per_diameter)
     lamp = ShiningLamp(grid, criterion=args.criterion, device=device)
@@ -65,7 +65,7 @@ def _run(args) -> int:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="warp-lamp", description=__doc__)
     sub = parser.add_subparsers(dest="command")
-    run = sub.add_parser("run", help="pressure on a built-in 100 mm ball of 5 mm particles (the default)")
+    run = sub.add_parser("run", help="pressure on the built-in 100 mm SphereTest specimen of 5 mm particles (the default)")
     for p in (parser, run):
         p.add_argument("--device", default=None, help="warp device, e.g. cpu or cuda:0 (default: Warp's default)")
         p.add_argument("--cells-per-diameter", type=float, default=4.0, help="cells per mean particle diameter")

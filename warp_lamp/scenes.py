@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Scene", "scene_lattice_ball", "scene_lattice_box", "scene_lone_sphere"]
+__all__ = ["Scene", "scene_lattice_ball", "scene_lattice_box", "scene_lone_sphere", "scene_sphere_specimen"]
+
+#: Bump when the packing algorithm changes, so that cached specimens are rebuilt.
+_PACKING_VERSION = 1
 
 
 @dataclass
@@ -84,3 +91,101 @@ def scene_lone_sphere(radius: float = 0.5, cell_size: float = 0.25, *, seed: int
     """One sphere at a random sub-cell offset from the origin (0 <= offset < cell_size per coordinate)."""
     c = np.random.default_rng(seed).uniform(0.0, cell_size, (1, 3))
     return Scene("lone sphere", c, np.array([radius]), c[0], radius)
+
+
+def _cache_dir() -> Path:
+    base = os.environ.get("WARP_LAMP_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "warp_lamp"
+    )
+    return Path(base)
+
+
+def scene_sphere_specimen(
+    diameter: float = 0.1,
+    particle_diameter: float = 0.005,
+    *,
+    ratio: float = 1.66,
+    porosity: float = 0.39,
+    seed: int = 0,
+    device=None,
+    cache: bool = True,
+) -> Scene:
+    """The memo's SphereTest specimen: a dense random packing of polydisperse spheres in a spherical body.
+
+    Radii are uniform in [Rmin, ratio Rmin] with mean ``particle_diameter / 2``; enough particles are drawn to
+    fill the body at ``porosity`` (against the envelope sphere), placed at random inside it at 80% of their size,
+    then grown to full size by overlap relaxation on a ``wp.HashGrid`` (Jacobi steps with momentum, each
+    particle moving by half of every overlap, the container pushing back) until no overlap exceeds 1% of the
+    smaller radius. Porosity 0.39 relaxes in about 1400 steps (seconds on one CPU core); much below 0.38 the
+    packing jams before its overlaps fall under 1%.
+    The result is cached under ``$WARP_LAMP_CACHE`` (default ``~/.cache/warp_lamp``), keyed by the parameters.
+
+    Args:
+        diameter: Body diameter [m].
+        particle_diameter: Mean particle diameter [m].
+        ratio: Rmax / Rmin.
+        porosity: Target porosity of the envelope sphere.
+        seed: Random seed.
+        device: Warp device for the relaxation (CPU takes a few seconds).
+        cache: Read and write the on-disk cache.
+    """
+    params = dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed, v=_PACKING_VERSION)
+    key = hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_dir() / f"specimen-{key}.npz"
+    R = diameter / 2.0
+    if cache and path.exists():
+        data = np.load(path)
+        return Scene("sphere specimen", data["centers"], data["radii"], np.zeros(3), R)
+    centers, radii = _relax_packing(R, particle_diameter / 2.0, ratio, porosity, seed, device)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, centers=centers, radii=radii)
+        os.replace(tmp, path)
+    return Scene("sphere specimen", centers, radii, np.zeros(3), R)
+
+
+MOMENTUM = 0.8
+
+
+def _relax_packing(R, rmean, ratio, porosity, seed, device, tol=0.0099, max_iter=20000):
+    import warp as wp  # noqa: PLC0415
+
+    from warp_lamp.kernels import packing as K  # noqa: PLC0415
+
+    rng = np.random.default_rng(seed)
+    rmin = 2.0 * rmean / (1.0 + ratio)
+    target = (1.0 - porosity) * 4.0 / 3.0 * np.pi * R**3
+    mean_volume = 4.0 / 3.0 * np.pi * np.mean(rng.uniform(rmin, ratio * rmin, 100000) ** 3)
+    radii = rng.uniform(rmin, ratio * rmin, int(1.5 * target / mean_volume) + 10)
+    radii = radii[: int(np.searchsorted(np.cumsum(4.0 / 3.0 * np.pi * radii**3), target)) + 1]
+    n = len(radii)
+    # Uniform in the ball of radius R - r: direction times R' u^(1/3).
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    x0 = v * ((R - radii) * rng.uniform(0.0, 1.0, n) ** (1.0 / 3.0))[:, None]
+    device = wp.get_device(device)
+    x = wp.array(x0.astype(np.float32), dtype=wp.vec3, device=device)
+    r = wp.array(radii.astype(np.float32), dtype=wp.float32, device=device)
+    dx = wp.zeros(n, dtype=wp.vec3, device=device)
+    vel = wp.zeros(n, dtype=wp.vec3, device=device)
+    worst = wp.zeros(1, dtype=wp.float32, device=device)
+    dim = max(8, int(np.ceil(n ** (1.0 / 3.0))))
+    grid = wp.HashGrid(dim, dim, dim, device=device)
+    query = float(2.0 * ratio * rmin)
+    scale, grow = 0.5, 1.004
+    for it in range(max_iter):
+        grid.build(x, query)
+        worst.zero_()
+        wp.launch(K.packing_push, dim=n, inputs=[grid.id, x, r, scale, R, query], outputs=[dx, worst], device=device)
+        wp.launch(K.packing_move, dim=n, inputs=[dx, MOMENTUM], outputs=[vel, x], device=device)
+        if it % 10 == 9:
+            w = float(worst.numpy()[0])
+            if scale >= 1.0 and w < tol:
+                break
+            # Grow while overlaps stay moderate; hold the size and relax when they pile up.
+            if w < 0.05:
+                scale = min(1.0, scale * grow**10)
+    else:
+        raise RuntimeError(f"packing: did not relax below {tol:.1%} overlap in {max_iter} steps (worst {w:.3%})")
+    return x.numpy().astype(np.float64), radii

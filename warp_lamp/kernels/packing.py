@@ -1,0 +1,61 @@
+"""Overlap relaxation for dense random sphere packings inside a spherical container."""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.kernel(enable_backward=False)
+def packing_push(
+    grid: wp.uint64,
+    x: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    scale: wp.float32,
+    body_radius: wp.float32,
+    query_radius: wp.float32,
+    # outputs
+    dx: wp.array[wp.vec3],
+    worst: wp.array[wp.float32],
+):
+    """Jacobi step: each particle moves by half of every overlap it has, and back inside the container."""
+    i = wp.tid()
+    xi = x[i]
+    ri = radii[i] * scale
+    d = wp.vec3(0.0)
+    q = wp.hash_grid_query(grid, xi, query_radius)
+    j = int(0)
+    while wp.hash_grid_query_next(q, j):
+        if j != i:
+            rij = xi - x[j]
+            dist = wp.length(rij)
+            rj = radii[j] * scale
+            ov = ri + rj - dist
+            if ov > 0.0:
+                n = wp.vec3(1.0, 0.0, 0.0)
+                if dist > 0.0:
+                    n = rij / dist
+                elif i < j:
+                    n = wp.vec3(-1.0, 0.0, 0.0)
+                d += 0.5 * ov * n
+                wp.atomic_max(worst, 0, ov / wp.min(ri, rj))
+    dc = wp.length(xi)
+    excess = dc + ri - body_radius
+    if excess > 0.0 and dc > 0.0:
+        d -= excess * xi / dc
+        wp.atomic_max(worst, 0, excess / ri)
+    dx[i] = d
+
+
+@wp.kernel(enable_backward=False)
+def packing_move(
+    dx: wp.array[wp.vec3],
+    momentum: wp.float32,
+    # outputs
+    v: wp.array[wp.vec3],
+    x: wp.array[wp.vec3],
+):
+    """Heavy-ball step: plain Jacobi crawls once the packing nears jamming; momentum carries it through."""
+    i = wp.tid()
+    vi = momentum * v[i] + dx[i]
+    v[i] = vi
+    x[i] = x[i] + vi
