@@ -1,6 +1,6 @@
 """Draw the memo's Figures 10-14: where the +x, +y and +z lamps' rays meet the SphereTest specimen.
 
-    pip install ".[plot]" && python examples/owner_map.py --out docs/owner_map.png
+pip install ".[plot]" && python examples/owner_map.py --out docs/owner_map.png
 """
 
 import argparse
@@ -18,12 +18,12 @@ def main():
     parser.add_argument("--ratios", default="2,4,8,16", help="cells per mean diameter, one panel each")
     parser.add_argument("--device", default=None)
     args = parser.parse_args()
-    import matplotlib  # noqa: PLC0415
+    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import matplotlib.pyplot as plt
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     scene = scene_sphere_specimen()
     ratios = [float(k) for k in args.ratios.split(",")]
     fig = plt.figure(figsize=(4 * len(ratios), 4.4))
@@ -36,7 +36,7 @@ def main():
             u, v = lamp.grid.cell_centers(a)
             uu, vv = np.meshgrid(u, v, indexing="ij")
             depth = d.depths[name]
-            pts = np.zeros(depth.shape + (3,))
+            pts = np.zeros((*depth.shape, 3))
             pts[..., a] = depth
             pts[..., (a + 1) % 3] = uu
             pts[..., (a + 2) % 3] = vv

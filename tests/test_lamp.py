@@ -383,3 +383,26 @@ def test_apply_is_graph_capturable(dev, rng):
     pressure.fill_(2 * P)
     wp.capture_launch(capture.graph)
     np.testing.assert_array_equal(forces.numpy(), 2 * eager.numpy())
+
+
+@pytest.mark.parametrize("criterion", [1, 0])
+def test_update_order_does_not_change_results(device, rng, criterion):
+    """A lamp that lit another scene first (warm start) gives bitwise the owners of a fresh lamp, and so does
+    one that forgot its history (cold start)."""
+    a_c, a_r = polydisperse_scene(rng, n=300)
+    b_c = a_c + rng.normal(scale=0.3, size=a_c.shape)
+    grid = wl.LampGrid([-1.0] * 3, [6.5] * 3, 0.1)
+    pos = wp.array(b_c.astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(a_r.astype(np.float32), device=device)
+    fresh = wl.ShiningLamp(grid, criterion=criterion, device=device)
+    fresh.update(pos, rad)
+    warm = wl.ShiningLamp(grid, criterion=criterion, device=device)
+    warm.update(wp.array(a_c.astype(np.float32), dtype=wp.vec3, device=device), rad)
+    warm.update(pos, rad)
+    assert warm._lit_prev.numpy().any()
+    np.testing.assert_array_equal(warm.keys.numpy(), fresh.keys.numpy())
+    np.testing.assert_array_equal(warm.counts_numpy(), fresh.counts_numpy())
+    warm.forget()
+    warm.update(pos, rad)
+    assert not warm._lit_prev.numpy().any()
+    np.testing.assert_array_equal(warm.keys.numpy(), fresh.keys.numpy())

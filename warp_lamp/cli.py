@@ -13,7 +13,7 @@ __all__ = ["main"]
 def _run(args) -> int:
     import warp as wp
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     wp.init()
     from warp_lamp import LampGrid, ShiningLamp
     from warp_lamp.lamp import pressure_area
@@ -65,12 +65,45 @@ def _run(args) -> int:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="warp-lamp", description=__doc__)
     sub = parser.add_subparsers(dest="command")
-    run = sub.add_parser("run", help="pressure on the built-in 100 mm SphereTest specimen of 5 mm particles (the default)")
+    run = sub.add_parser(
+        "run", help="pressure on the built-in 100 mm SphereTest specimen of 5 mm particles (the default)"
+    )
     for p in (parser, run):
         p.add_argument("--device", default=None, help="warp device, e.g. cpu or cuda:0 (default: Warp's default)")
         p.add_argument("--cells-per-diameter", type=float, default=4.0, help="cells per mean particle diameter")
         p.add_argument("--criterion", type=int, default=1, choices=(0, 1), help="1: cell-centre ray, 0: overlap")
         p.add_argument("--pressure", type=float, default=10e6, help="fluid pressure [Pa]")
         p.add_argument("--repeats", type=int, default=5, help="timed updates")
+    bench = sub.add_parser("bench", help="speed against error, on every device present, with peers")
+    bench.add_argument("what", nargs="?", default="lamp", choices=("lamp",), help="what to benchmark")
+    bench.add_argument("--quick", action="store_true", help="a CPU-sized subset, under a minute")
+    bench.add_argument("--device", action="append", help="a warp device to time (repeatable; default: all)")
+    bench.add_argument("--json", metavar="PATH", help="write the results as JSON")
+    bench.add_argument("--plot", metavar="PATH", help="time against error as a PNG (needs the plot extra)")
+    bench.add_argument("--repeats", type=int, default=None, help="timed repeats per figure")
+    bench.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    if args.command == "bench":
+        return _bench(args)
     return _run(args)
+
+
+def _bench(args) -> int:
+    import json
+
+    import warp as wp
+
+    wp.config.log_level = wp.LOG_WARNING
+    wp.init()
+    from warp_lamp.bench import bench_lamp, format_tables, plot
+
+    result = bench_lamp(args.device, quick=args.quick, progress=not args.no_progress, repeats=args.repeats)
+    print(format_tables(result))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=1)
+        print(f"\nwrote {args.json}")
+    if args.plot:
+        plot(result, args.plot)
+        print(f"wrote {args.plot}")
+    return 0

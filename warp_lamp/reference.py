@@ -58,6 +58,7 @@ def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_
             du = np.maximum(np.maximum(ii * hu - pu, pu - (ii + 1) * hu), 0.0)
             dv = np.maximum(np.maximum(jj * hv - pv, pv - (jj + 1) * hv), 0.0)
         d2 = du * du + dv * dv
+        # The kernels test du^2 <= r^2 - dv^2 in float32: the same criterion, rounded differently.
         # Rounding of the float32 inputs and of each float32 operation on the way to d2 and r2.
         scale_u = np.abs(ii + 1) * hu + abs(pu) + abs(local_c[k, u]) + abs(cu)
         scale_v = np.abs(jj + 1) * hv + abs(pv) + abs(local_c[k, v]) + abs(cv)

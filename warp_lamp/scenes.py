@@ -149,9 +149,9 @@ MOMENTUM = 0.8
 
 
 def _relax_packing(R, rmean, ratio, porosity, seed, device, tol=0.0099, max_iter=20000):
-    import warp as wp  # noqa: PLC0415
+    import warp as wp
 
-    from warp_lamp.kernels import packing as K  # noqa: PLC0415
+    from warp_lamp.kernels import packing as K
 
     rng = np.random.default_rng(seed)
     rmin = 2.0 * rmean / (1.0 + ratio)

@@ -33,17 +33,30 @@ def key_owner(key: wp.uint64) -> wp.int32:
 
 
 @wp.func
-def cell_span(lo: wp.float32, hi: wp.float32, h: wp.float32, n: wp.int32) -> wp.vec2i:
-    """Indices [first, last] of the cells [i h, (i+1) h] that may meet [lo, hi], clamped to [0, n-1].
+def cell_span(lo: wp.float32, hi: wp.float32, h: wp.float32, n: wp.int32, centre: wp.int32) -> wp.vec2i:
+    """Indices [first, last] of the cells that may meet [lo, hi], clamped to [0, n-1]; first > last if none.
 
-    Widened by one cell on each side: the caller tests every cell exactly, so the span only has to be a
-    superset, and rounding in the division must not drop a cell. Clamping happens in float so that a far
-    sphere cannot overflow the int conversion. first > last means no cell.
+    centre=1: cells whose centre (i + 1/2) h lies in [lo, hi]; centre=0: cells [i h, (i+1) h] that overlap it.
+    The span is padded by a tolerance above the float32 rounding of the divisions (2^-10 of a cell, plus 16 ulps
+    of the coordinates in cells), so that no cell the caller's exact test accepts is left out, and it costs at
+    most one extra test per end instead of a whole widened cell. Clamping happens in float, so a far sphere
+    cannot overflow the int conversion.
     """
+    x = lo / h
+    y = hi / h
+    tol = 0.0009765625 + (wp.abs(x) + wp.abs(y)) * 9.5367431640625e-07
+    a = float(0.0)
+    b = float(0.0)
+    if centre != 0:
+        a = wp.ceil(x - 0.5 - tol)
+        b = wp.floor(y - 0.5 + tol)
+    else:
+        a = wp.ceil(x - 1.0 - tol)
+        b = wp.floor(y + tol)
     nf = wp.float32(n)
-    a = wp.clamp(wp.floor(lo / h) - 1.0, -1.0, nf)
-    b = wp.clamp(wp.floor(hi / h) + 1.0, -1.0, nf)
-    return wp.vec2i(wp.max(wp.int32(a), 0), wp.min(wp.int32(b), n - 1))
+    a = wp.clamp(a, 0.0, nf)
+    b = wp.clamp(b, -1.0, nf - 1.0)
+    return wp.vec2i(wp.int32(a), wp.int32(b))
 
 
 @wp.func

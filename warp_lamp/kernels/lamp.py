@@ -14,7 +14,7 @@ from warp_lamp.kernels.footprint import EMPTY_KEY, cell_span, key_owner, pack_ke
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
-wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+wp.set_module_options({"enable_backward": False, "fuse_fp": False, "optimization_level": 3})
 
 DIAG_INVALID = wp.constant(0)
 DIAG_OUTSIDE = wp.constant(1)
@@ -30,18 +30,25 @@ def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
 @wp.kernel(enable_backward=False)
 def lamp_clear(
     n_slots: wp.int32,
-    n_counts: wp.int32,
+    n_particles: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
     counts: wp.array[wp.int32],
+    lit_prev: wp.array[wp.int32],
+    lit_now: wp.array[wp.int32],
     diag: wp.array[wp.int32],
 ):
-    """One launch resets everything an update writes (fewer graph nodes than three fills)."""
+    """One launch resets everything an update writes (one graph node instead of four fills), and moves the
+    lit flags of the last update to lit_prev, where the depth pass reads them to order its work."""
     t = wp.tid()
     if t < n_slots:
         keys[t] = EMPTY_KEY
-    if t < n_counts:
-        counts[t] = 0
+    if t < n_particles:
+        counts[3 * t] = 0
+        counts[3 * t + 1] = 0
+        counts[3 * t + 2] = 0
+        lit_prev[t] = lit_now[t]
+        lit_now[t] = 0
     if t < diag.shape[0]:
         diag[t] = 0
 
@@ -61,11 +68,21 @@ def lamp_depth(
     offset: wp.vec3i,
     criterion: wp.int32,
     lamp_mask: wp.int32,
+    lit_prev: wp.array[wp.int32],
+    lit_pass: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
     diag: wp.array[wp.int32],
 ):
+    """One thread per sphere offers (depth, id) keys to every cell its projected disk covers.
+
+    Two launches share the spheres: lit_pass 1 takes those lit in the last update, lit_pass 0 the rest. The
+    final keys do not depend on the order (atomic_min), but the owners-to-be then write first and nearly every
+    later candidate fails the read-before-atomic test, so hidden spheres cost loads instead of atomics.
+    """
     pid = wp.tid()
+    if lit_prev[pid] != lit_pass:
+        return
     if active.shape[0] > 0:
         if active[pid] == 0:
             return
@@ -93,39 +110,68 @@ def lamp_depth(
         if pu - r < 0.0 or pv - r < 0.0 or pu + r > hu * float(nu) or pv + r > hv * float(nv):
             outside = 1
         base = offset[a]
-        rows = cell_span(pv - r, pv + r, hv, nv)
+        rows = cell_span(pv - r, pv + r, hv, nv, criterion)
         for j in range(rows[0], rows[1] + 1):
             dv = float(0.0)
             if criterion == 1:
                 dv = (float(j) + 0.5) * hv - pv
             else:
                 dv = rect_gap(pv, float(j) * hv, float(j + 1) * hv)
+            # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
+            # of cells and the span from w = sqrt(rem) brackets it.
             rem = r2 - dv * dv
             if rem < 0.0:
                 continue
             w = wp.sqrt(rem)
-            cols = cell_span(pu - w, pu + w, hu, nu)
+            cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+            row = 2 * (base + j * nu)
+            # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
+            # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
+            # the row is done with one load per cell and no sqrt or key packing; ties keep the row alive.
+            reach = w
+            if criterion == 0:
+                reach = 0.0
+            lo_bound = pack_key(pd - reach, 0)
+            hi_bound = pack_key(-(pd + reach), 0)
+            lo_live = int(0)
+            hi_live = int(0)
+            for i in range(cols[0], cols[1] + 1):
+                slot = row + 2 * i
+                if lo_on != 0 and keys[slot] >= lo_bound:
+                    lo_live = 1
+                if hi_on != 0 and keys[slot + 1] >= hi_bound:
+                    hi_live = 1
+            if lo_live + hi_live == 0:
+                continue
             for i in range(cols[0], cols[1] + 1):
                 du = float(0.0)
                 if criterion == 1:
                     du = (float(i) + 0.5) * hu - pu
                 else:
                     du = rect_gap(pu, float(i) * hu, float(i + 1) * hu)
-                d2 = du * du + dv * dv
-                if d2 <= r2:
+                du2 = du * du
+                if du2 <= rem:
                     depth_lo = pd
                     depth_hi = pd
                     if criterion == 1:
-                        s = wp.sqrt(r2 - d2)
+                        s = wp.sqrt(rem - du2)
                         depth_lo = pd - s
                         depth_hi = pd + s
-                    slot = 2 * (base + j * nu + i)
-                    if lo_on != 0:
+                    slot = row + 2 * i
+                    if lo_live != 0:
                         offer(keys, slot, pack_key(depth_lo, pid))
-                    if hi_on != 0:
+                    if hi_live != 0:
                         offer(keys, slot + 1, pack_key(-depth_hi, pid))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
+
+
+@wp.kernel(enable_backward=False)
+def lamp_forget(
+    # outputs
+    lit_now: wp.array[wp.int32],
+):
+    lit_now[wp.tid()] = 0
 
 
 @wp.kernel(enable_backward=False)
@@ -134,6 +180,7 @@ def lamp_scatter(
     offset: wp.vec3i,
     # outputs
     counts: wp.array[wp.int32],
+    lit_now: wp.array[wp.int32],
 ):
     """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
     the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
@@ -145,10 +192,15 @@ def lamp_scatter(
         a = 1
     low = keys[2 * c]
     high = keys[2 * c + 1]
+    # lit_now is written with plain stores: every writer stores the same 1.
     if low != EMPTY_KEY:
-        wp.atomic_add(counts, 3 * key_owner(low) + a, 1)
+        owner = key_owner(low)
+        wp.atomic_add(counts, 3 * owner + a, 1)
+        lit_now[owner] = 1
     if high != EMPTY_KEY:
-        wp.atomic_add(counts, 3 * key_owner(high) + a, -1)
+        owner = key_owner(high)
+        wp.atomic_add(counts, 3 * owner + a, -1)
+        lit_now[owner] = 1
 
 
 @wp.kernel(enable_backward=False)
