@@ -27,5 +27,7 @@ for fuse in (False, True):
     t = time_lamp(scene, grid, 1, dev, repeats=50)
     gpu = lamp_solve(c, r, cells_per_diameter=8, device=dev).diagnostics()
     same = all(np.array_equal(cpu.depths[k], gpu.depths[k], equal_nan=True) for k in cpu.depths)
-    print(f"fuse_fp={fuse}: replay {t['replay_s'] * 1e3:.4f} ms, depth {t['depth_s'] * 1e3:.4f} ms, "
-          f"cold {t['cold_s'] * 1e3:.4f} ms; CPU==CUDA depths bitwise: {same}")
+    print(
+        f"fuse_fp={fuse}: replay {t['replay_s'] * 1e3:.4f} ms, depth {t['depth_s'] * 1e3:.4f} ms, "
+        f"cold {t['cold_s'] * 1e3:.4f} ms; CPU==CUDA depths bitwise: {same}"
+    )

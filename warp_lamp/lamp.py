@@ -94,7 +94,9 @@ class LampDiagnostics:
 class ShiningLamp:
     """Shining-lamp pressure boundary for Warp particle simulators: arrays in, forces added in place.
 
-    ``update`` finds which particle each lamp cell lights and stores signed cell counts per particle;
+    ``update`` finds which particle each lamp cell lights and stores signed cell counts per particle. It starts
+    from the last update's owners, re-evaluated at the new positions, so that a slowly moving body costs little
+    more than reading its footprint; the result does not depend on that history (an atomic minimum).
     ``add_forces`` adds P_a A_a count into a simulator's force array; ``apply`` does both. None of them
     allocates (after the first update at a given particle count, or after :meth:`reserve`), synchronises or
     reads device data on the host, so they can be recorded in a CUDA graph with ``wp.ScopedCapture``. Invalid
@@ -136,8 +138,6 @@ class ShiningLamp:
         self.keys = wp.full(2 * self._n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
         self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
-        self._lit_prev = wp.zeros(0, dtype=wp.int32, device=d)
-        self._lit_now = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
         self.n = 0
@@ -151,13 +151,10 @@ class ShiningLamp:
                     "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
-            self._lit_prev = wp.zeros(n, dtype=wp.int32, device=self.device)
-            self._lit_now = wp.zeros(n, dtype=wp.int32, device=self.device)
 
     def forget(self) -> None:
-        """Drop the memory of which particles were lit, so that the next update runs cold (for benchmarks)."""
-        if self.n > 0:
-            wp.launch(K.lamp_forget, dim=self.n, outputs=[self._lit_now], device=self.device)
+        """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
+        wp.launch(K.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         if not isinstance(arr, wp.array):
@@ -194,40 +191,35 @@ class ShiningLamp:
         self.reserve(n)
         self.n = n
         d = self.device
+        grid_args = [self._corner_u, self._corner_v, self._h_u, self._h_v, self._n_u]
+        wp.launch(K.lamp_clear, dim=max(n, _N_DIAG), inputs=[n], outputs=[self.counts, self.diag], device=d)
         wp.launch(
-            K.lamp_clear,
-            dim=max(2 * self._n_cells, n, _N_DIAG),
-            inputs=[2 * self._n_cells, n],
-            outputs=[self.keys, self.counts, self._lit_prev, self._lit_now, self.diag],
+            K.lamp_seed,
+            dim=self._n_cells,
+            inputs=[positions, radii, active, n, origin, *grid_args, self._offset, self.criterion],
+            outputs=[self.keys],
             device=d,
         )
         if n == 0:
             return
-        fixed = [
-            positions,
-            radii,
-            active,
-            origin,
-            self._corner_u,
-            self._corner_v,
-            self._h_u,
-            self._h_v,
-            self._n_u,
-            self._n_v,
-            self._offset,
-            self.criterion,
-            self.lamp_mask,
-            self._lit_prev,
-        ]
-        for lit_pass in (1, 0):
-            wp.launch(K.lamp_depth, dim=n, inputs=[*fixed, lit_pass], outputs=[self.keys, self.diag], device=d)
         wp.launch(
-            K.lamp_scatter,
-            dim=self._n_cells,
-            inputs=[self.keys, self._offset],
-            outputs=[self.counts, self._lit_now],
+            K.lamp_depth,
+            dim=n,
+            inputs=[
+                positions,
+                radii,
+                active,
+                origin,
+                *grid_args,
+                self._n_v,
+                self._offset,
+                self.criterion,
+                self.lamp_mask,
+            ],
+            outputs=[self.keys, self.diag],
             device=d,
         )
+        wp.launch(K.lamp_scatter, dim=self._n_cells, inputs=[self.keys, self._offset], outputs=[self.counts], device=d)
 
     def add_forces(self, forces: wp.array, pressure) -> None:
         """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.

@@ -37,7 +37,6 @@ class BvhLamp:
         self.n_cells = grid.n_cells
         self.keys = wp.zeros(2 * self.n_cells, dtype=wp.uint64, device=d)
         self.counts = wp.zeros(3 * n, dtype=wp.int32, device=d)
-        self.lit = wp.zeros(n, dtype=wp.int32, device=d)
         self.lowers = wp.zeros(n, dtype=wp.vec3, device=d)
         self.uppers = wp.zeros(n, dtype=wp.vec3, device=d)
         self.bvh = None
@@ -81,7 +80,7 @@ class BvhLamp:
             KL.lamp_scatter,
             dim=self.n_cells,
             inputs=[self.keys, self._offset],
-            outputs=[self.counts, self.lit],
+            outputs=[self.counts],
             device=d,
         )
 

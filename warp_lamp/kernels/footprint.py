@@ -70,3 +70,24 @@ def veltkamp_round26(x: wp.float64) -> wp.float64:
     """x rounded to 26 significant bits (Veltkamp split), so that x times any count below 2**27 is exact."""
     t = x * wp.float64(134217729.0)
     return t - (t - x)
+
+
+@wp.func
+def cell_offset(i: wp.int32, h: wp.float32, x: wp.float32, criterion: wp.int32) -> wp.float32:
+    """Transverse offset between cell i of width h and a sphere centre at x: from the cell centre (criterion 1)
+    or the distance to the cell's interval (criterion 0)."""
+    if criterion == 1:
+        return (float(i) + 0.5) * h - x
+    return rect_gap(x, float(i) * h, float(i + 1) * h)
+
+
+@wp.func
+def lamp_reach(rem: wp.float32, du: wp.float32, criterion: wp.int32) -> wp.float32:
+    """Half-length of the sphere along a lit cell's ray (criterion 1), or 0 (criterion 0: depth at the centre).
+
+    ``rem = r^2 - dv^2`` of the cell's row; the cell is lit when ``du^2 <= rem``. Every kernel that decides a
+    cell (depth pass, seeding, BVH peer) goes through this and ``cell_offset``, so their float32 roundings agree.
+    """
+    if criterion == 1:
+        return wp.sqrt(rem - du * du)
+    return 0.0

@@ -10,7 +10,15 @@ tie rule (lowest id wins) serve both sides.
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import EMPTY_KEY, cell_span, key_owner, pack_key, rect_gap, veltkamp_round26
+from warp_lamp.kernels.footprint import (
+    EMPTY_KEY,
+    cell_offset,
+    cell_span,
+    key_owner,
+    lamp_reach,
+    pack_key,
+    veltkamp_round26,
+)
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -29,28 +37,102 @@ def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
 
 @wp.kernel(enable_backward=False)
 def lamp_clear(
-    n_slots: wp.int32,
     n_particles: wp.int32,
     # outputs
-    keys: wp.array[wp.uint64],
     counts: wp.array[wp.int32],
-    lit_prev: wp.array[wp.int32],
-    lit_now: wp.array[wp.int32],
     diag: wp.array[wp.int32],
 ):
-    """One launch resets everything an update writes (one graph node instead of four fills), and moves the
-    lit flags of the last update to lit_prev, where the depth pass reads them to order its work."""
     t = wp.tid()
-    if t < n_slots:
-        keys[t] = EMPTY_KEY
     if t < n_particles:
         counts[3 * t] = 0
         counts[3 * t + 1] = 0
         counts[3 * t + 2] = 0
-        lit_prev[t] = lit_now[t]
-        lit_now[t] = 0
     if t < diag.shape[0]:
         diag[t] = 0
+
+
+@wp.func
+def particle_frame(
+    pid: wp.int32,
+    n: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+) -> wp.vec4:
+    """(frame position, radius) of a particle that can cast light; radius 0 when inactive or invalid."""
+    if pid >= n:
+        return wp.vec4(0.0)
+    if active.shape[0] > 0:
+        if active[pid] == 0:
+            return wp.vec4(0.0)
+    p = positions[pid] - origin
+    r = radii[pid]
+    # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r) and r > 0.0):
+        return wp.vec4(0.0)
+    return wp.vec4(p[0], p[1], p[2], r)
+
+
+@wp.kernel(enable_backward=False)
+def lamp_seed(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    n: wp.int32,
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: wp.int32,
+    # outputs
+    keys: wp.array[wp.uint64],
+):
+    """One thread per cell replaces each lamp's key with its last owner's key at the current positions (or
+    EMPTY where that owner no longer lights the cell).
+
+    The seed is one of the offers the depth pass makes anyway, so the final atomic minimum is unchanged; but it
+    is nearly always the winner already, so the depth pass then finds almost every row decided and issues
+    almost no atomics. This replaces clearing the keys.
+    """
+    c = wp.tid()
+    a = int(0)
+    if c >= offset[2]:
+        a = 2
+    elif c >= offset[1]:
+        a = 1
+    local = c - offset[a]
+    j = local / n_u[a]
+    i = local - j * n_u[a]
+    for side in range(2):
+        key = keys[2 * c + side]
+        if key != EMPTY_KEY:
+            owner = key_owner(key)
+            q = particle_frame(owner, n, positions, radii, active, origin)
+            key = EMPTY_KEY
+            r = q[3]
+            if r > 0.0:
+                dv = cell_offset(j, h_v[a], q[(a + 2) % 3] - corner_v[a], criterion)
+                du = cell_offset(i, h_u[a], q[(a + 1) % 3] - corner_u[a], criterion)
+                rem = r * r - dv * dv
+                if rem >= 0.0 and du * du <= rem:
+                    s = lamp_reach(rem, du, criterion)
+                    if side == 0:
+                        key = pack_key(q[a] - s, owner)
+                    else:
+                        key = pack_key(-(q[a] + s), owner)
+            keys[2 * c + side] = key
+
+
+@wp.kernel(enable_backward=False)
+def lamp_forget(
+    # outputs
+    keys: wp.array[wp.uint64],
+):
+    keys[wp.tid()] = EMPTY_KEY
 
 
 @wp.kernel(enable_backward=False)
@@ -68,30 +150,22 @@ def lamp_depth(
     offset: wp.vec3i,
     criterion: wp.int32,
     lamp_mask: wp.int32,
-    lit_prev: wp.array[wp.int32],
-    lit_pass: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
     diag: wp.array[wp.int32],
 ):
-    """One thread per sphere offers (depth, id) keys to every cell its projected disk covers.
-
-    Two launches share the spheres: lit_pass 1 takes those lit in the last update, lit_pass 0 the rest. The
-    final keys do not depend on the order (atomic_min), but the owners-to-be then write first and nearly every
-    later candidate fails the read-before-atomic test, so hidden spheres cost loads instead of atomics.
-    """
+    """One thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk
+    covers, on the three grids, with atomic_min: the order of offers cannot change the result."""
     pid = wp.tid()
-    if lit_prev[pid] != lit_pass:
-        return
-    if active.shape[0] > 0:
-        if active[pid] == 0:
-            return
-    p = positions[pid] - origin
-    r = radii[pid]
-    # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
-    finite = wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r)
-    if not (finite and r > 0.0):
-        wp.atomic_add(diag, DIAG_INVALID, 1)
+    q = particle_frame(pid, positions.shape[0], positions, radii, active, origin)
+    r = q[3]
+    if r == 0.0:
+        inactive = int(0)
+        if active.shape[0] > 0:
+            if active[pid] == 0:
+                inactive = 1
+        if inactive == 0:
+            wp.atomic_add(diag, DIAG_INVALID, 1)
         return
     r2 = r * r
     outside = int(0)
@@ -100,9 +174,9 @@ def lamp_depth(
         hi_on = (lamp_mask >> (2 * a + 1)) & 1
         if lo_on + hi_on == 0:
             continue
-        pu = p[(a + 1) % 3] - corner_u[a]
-        pv = p[(a + 2) % 3] - corner_v[a]
-        pd = p[a]
+        pu = q[(a + 1) % 3] - corner_u[a]
+        pv = q[(a + 2) % 3] - corner_v[a]
+        pd = q[a]
         hu = h_u[a]
         hv = h_v[a]
         nu = n_u[a]
@@ -112,13 +186,9 @@ def lamp_depth(
         base = offset[a]
         rows = cell_span(pv - r, pv + r, hv, nv, criterion)
         for j in range(rows[0], rows[1] + 1):
-            dv = float(0.0)
-            if criterion == 1:
-                dv = (float(j) + 0.5) * hv - pv
-            else:
-                dv = rect_gap(pv, float(j) * hv, float(j + 1) * hv)
             # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
             # of cells and the span from w = sqrt(rem) brackets it.
+            dv = cell_offset(j, hv, pv, criterion)
             rem = r2 - dv * dv
             if rem < 0.0:
                 continue
@@ -128,9 +198,7 @@ def lamp_depth(
             # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
             # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
             # the row is done with one load per cell and no sqrt or key packing; ties keep the row alive.
-            reach = w
-            if criterion == 0:
-                reach = 0.0
+            reach = lamp_reach(rem, 0.0, criterion)
             lo_bound = pack_key(pd - reach, 0)
             hi_bound = pack_key(-(pd + reach), 0)
             lo_live = int(0)
@@ -144,34 +212,16 @@ def lamp_depth(
             if lo_live + hi_live == 0:
                 continue
             for i in range(cols[0], cols[1] + 1):
-                du = float(0.0)
-                if criterion == 1:
-                    du = (float(i) + 0.5) * hu - pu
-                else:
-                    du = rect_gap(pu, float(i) * hu, float(i + 1) * hu)
-                du2 = du * du
-                if du2 <= rem:
-                    depth_lo = pd
-                    depth_hi = pd
-                    if criterion == 1:
-                        s = wp.sqrt(rem - du2)
-                        depth_lo = pd - s
-                        depth_hi = pd + s
+                du = cell_offset(i, hu, pu, criterion)
+                if du * du <= rem:
+                    s = lamp_reach(rem, du, criterion)
                     slot = row + 2 * i
                     if lo_live != 0:
-                        offer(keys, slot, pack_key(depth_lo, pid))
+                        offer(keys, slot, pack_key(pd - s, pid))
                     if hi_live != 0:
-                        offer(keys, slot + 1, pack_key(-depth_hi, pid))
+                        offer(keys, slot + 1, pack_key(-(pd + s), pid))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-
-
-@wp.kernel(enable_backward=False)
-def lamp_forget(
-    # outputs
-    lit_now: wp.array[wp.int32],
-):
-    lit_now[wp.tid()] = 0
 
 
 @wp.kernel(enable_backward=False)
@@ -180,7 +230,6 @@ def lamp_scatter(
     offset: wp.vec3i,
     # outputs
     counts: wp.array[wp.int32],
-    lit_now: wp.array[wp.int32],
 ):
     """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
     the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
@@ -192,15 +241,10 @@ def lamp_scatter(
         a = 1
     low = keys[2 * c]
     high = keys[2 * c + 1]
-    # lit_now is written with plain stores: every writer stores the same 1.
     if low != EMPTY_KEY:
-        owner = key_owner(low)
-        wp.atomic_add(counts, 3 * owner + a, 1)
-        lit_now[owner] = 1
+        wp.atomic_add(counts, 3 * key_owner(low) + a, 1)
     if high != EMPTY_KEY:
-        owner = key_owner(high)
-        wp.atomic_add(counts, 3 * owner + a, -1)
-        lit_now[owner] = 1
+        wp.atomic_add(counts, 3 * key_owner(high) + a, -1)
 
 
 @wp.kernel(enable_backward=False)

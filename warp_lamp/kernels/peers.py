@@ -2,7 +2,7 @@
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import EMPTY_KEY, pack_key
+from warp_lamp.kernels.footprint import EMPTY_KEY, lamp_reach, pack_key
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -85,7 +85,7 @@ def bvh_cast(
         du2 = du * du
         # The lamp's own test and depth, written the same way, so that owners compare bitwise.
         if rem >= 0.0 and du2 <= rem:
-            s = wp.sqrt(rem - du2)
+            s = lamp_reach(rem, du, 1)
             key = EMPTY_KEY
             dist = float(0.0)
             if side == 0:
