@@ -178,27 +178,16 @@ def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: 
         # The depth pass alone, replayed after a seed (which leaves the keys as the full update does).
         grid_args = [lamp._corner_u, lamp._corner_v, lamp._h_u, lamp._h_v, lamp._n_u]
         seed = [pos, rad, lamp._no_active, n, origin, *grid_args, lamp._offset, lamp.criterion]
-        depth = [
-            pos,
-            rad,
-            lamp._no_active,
-            origin,
-            *grid_args,
-            lamp._n_v,
-            lamp._offset,
-            lamp.criterion,
-            lamp.lamp_mask,
-            *lamp._inv_h,
-        ]
+        depth = [pos, rad, lamp._no_active, origin, *grid_args, lamp._n_v, lamp._offset, lamp.criterion, lamp.lamp_mask]
 
         def seed_launch():
-            wp.launch(KL.lamp_seed, dim=lamp._n_cells, inputs=seed, outputs=[lamp.keys, lamp.hints], device=device)
+            wp.launch(KL.lamp_seed, dim=lamp._n_cells, inputs=seed, outputs=[lamp.keys], device=device)
 
         with wp.ScopedCapture(device=device) as cap_seed:
             seed_launch()
         with wp.ScopedCapture(device=device) as cap_depth:
             seed_launch()
-            wp.launch(KL.lamp_depth, dim=n, inputs=depth, outputs=[lamp.keys, lamp.hints, lamp.diag], device=device)
+            wp.launch(KL.lamp_depth, dim=n, inputs=depth, outputs=[lamp.keys, lamp.diag], device=device)
         t_fill = _median_gpu_time(lambda: wp.capture_launch(cap_seed.graph), device, repeats)
         out["seed_s"] = t_fill
         out["depth_s"] = _median_gpu_time(lambda: wp.capture_launch(cap_depth.graph), device, repeats) - t_fill
@@ -211,7 +200,7 @@ def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: 
     out["lit_cells"] = int(sum(lit.values()))
     out["expected_updates"] = _expected_updates(scene.radii, grid, criterion)
     out["bytes_per_sphere"] = 12 + 4 + 12 + 8  # positions, radii (caller's), counts, lit flags (lamp's)
-    out["bytes_per_cell"] = 24
+    out["bytes_per_cell"] = 16
     out["lamp_bytes"] = grid.nbytes + 20 * n
     return out
 

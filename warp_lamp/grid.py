@@ -10,8 +10,8 @@ __all__ = ["DEFAULT_MAX_BYTES", "LampGrid"]
 
 #: Default budget for the per-cell key arrays of one grid set [bytes].
 DEFAULT_MAX_BYTES = 2 << 30
-#: Bytes a cell needs on the device: per lamp (two per cell) a uint64 key and a uint32 depth hint.
-BYTES_PER_CELL = 24
+#: Bytes a cell needs on the device: one uint64 key per lamp, two lamps per cell.
+BYTES_PER_CELL = 16
 
 
 def _vec3(name: str, value, *, positive: bool = False) -> np.ndarray:

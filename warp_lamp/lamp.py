@@ -128,7 +128,6 @@ class ShiningLamp:
         self._corner_v = wp.vec3(*f["corner_v"])
         self._h_u = wp.vec3(*f["h_u"])
         self._h_v = wp.vec3(*f["h_v"])
-        self._inv_h = [wp.vec3(*(1.0 / np.float32(f[k]))) for k in ("h_u", "h_v")]
         self._n_u = wp.vec3i(*(int(x) for x in f["n_u"]))
         self._n_v = wp.vec3i(*(int(x) for x in f["n_v"]))
         self._offset = wp.vec3i(*(int(x) for x in f["offset"]))
@@ -137,7 +136,6 @@ class ShiningLamp:
         self._n_cells = grid.n_cells
         d = self.device
         self.keys = wp.full(2 * self._n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        self.hints = wp.full(2 * self._n_cells, value=np.uint32(0xFFFFFFFF), dtype=wp.uint32, device=d)
         self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -156,7 +154,7 @@ class ShiningLamp:
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
-        wp.launch(K.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys, self.hints], device=self.device)
+        wp.launch(K.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         if not isinstance(arr, wp.array):
@@ -199,7 +197,7 @@ class ShiningLamp:
             K.lamp_seed,
             dim=self._n_cells,
             inputs=[positions, radii, active, n, origin, *grid_args, self._offset, self.criterion],
-            outputs=[self.keys, self.hints],
+            outputs=[self.keys],
             device=d,
         )
         if n == 0:
@@ -217,9 +215,8 @@ class ShiningLamp:
                 self._offset,
                 self.criterion,
                 self.lamp_mask,
-                *self._inv_h,
             ],
-            outputs=[self.keys, self.hints, self.diag],
+            outputs=[self.keys, self.diag],
             device=d,
         )
         wp.launch(K.lamp_scatter, dim=self._n_cells, inputs=[self.keys, self._offset], outputs=[self.counts], device=d)

@@ -22,12 +22,6 @@ def ordered_bits(x: wp.float32) -> wp.uint32:
 
 
 @wp.func
-def key_depth_bits(key: wp.uint64) -> wp.uint32:
-    """The ordered depth bits of a key (the high word): the hint the row filter reads."""
-    return wp.uint32(key >> wp.uint64(32))
-
-
-@wp.func
 def pack_key(depth: wp.float32, pid: wp.int32) -> wp.uint64:
     """(depth, particle id) packed so that unsigned order is depth order, then lowest id."""
     return (wp.uint64(ordered_bits(depth)) << wp.uint64(32)) | wp.uint64(wp.uint32(pid))
@@ -39,17 +33,17 @@ def key_owner(key: wp.uint64) -> wp.int32:
 
 
 @wp.func
-def cell_span(lo: wp.float32, hi: wp.float32, inv_h: wp.float32, n: wp.int32, centre: wp.int32) -> wp.vec2i:
+def cell_span(lo: wp.float32, hi: wp.float32, h: wp.float32, n: wp.int32, centre: wp.int32) -> wp.vec2i:
     """Indices [first, last] of the cells that may meet [lo, hi], clamped to [0, n-1]; first > last if none.
 
     centre=1: cells whose centre (i + 1/2) h lies in [lo, hi]; centre=0: cells [i h, (i+1) h] that overlap it.
-    ``inv_h`` is 1/h rounded to float32. The span is padded by a tolerance above the float32 rounding of the
-    products (2^-10 of a cell, plus 16 ulps of the coordinates in cells), so that no cell the caller's exact
-    test accepts is left out; it costs at most one extra test per end. Clamping happens in float, so a far
-    sphere cannot overflow the int conversion.
+    The span is padded by a tolerance above the float32 rounding of the divisions (2^-10 of a cell, plus 16 ulps
+    of the coordinates in cells), so that no cell the caller's exact test accepts is left out, and it costs at
+    most one extra test per end instead of a whole widened cell. Clamping happens in float, so a far sphere
+    cannot overflow the int conversion.
     """
-    x = lo * inv_h
-    y = hi * inv_h
+    x = lo / h
+    y = hi / h
     tol = 0.0009765625 + (wp.abs(x) + wp.abs(y)) * 9.5367431640625e-07
     a = float(0.0)
     b = float(0.0)

@@ -14,10 +14,8 @@ from warp_lamp.kernels.footprint import (
     EMPTY_KEY,
     cell_offset,
     cell_span,
-    key_depth_bits,
     key_owner,
     lamp_reach,
-    ordered_bits,
     pack_key,
     veltkamp_round26,
 )
@@ -31,14 +29,10 @@ DIAG_OUTSIDE = wp.constant(1)
 
 
 @wp.func
-def offer(keys: wp.array[wp.uint64], hints: wp.array[wp.uint32], slot: wp.int32, key: wp.uint64):
-    # Read before the atomic: a losing candidate costs a load instead of an L2 atomic round trip. A winner also
-    # lowers the slot's 32-bit depth hint; the hint may trail its key for a moment, never lead it, so a filter
-    # that reads it can only let too much through, never too little.
+def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
+    # Read before the atomic: a losing candidate costs a load instead of an L2 atomic round trip.
     if key < keys[slot]:
-        old = wp.atomic_min(keys, slot, key)
-        if key < old:
-            wp.atomic_min(hints, slot, key_depth_bits(key))
+        wp.atomic_min(keys, slot, key)
 
 
 @wp.kernel(enable_backward=False)
@@ -96,7 +90,6 @@ def lamp_seed(
     criterion: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
-    hints: wp.array[wp.uint32],
 ):
     """One thread per cell replaces each lamp's key with its last owner's key at the current positions (or
     EMPTY where that owner no longer lights the cell).
@@ -132,20 +125,14 @@ def lamp_seed(
                     else:
                         key = pack_key(-(q[a] + s), owner)
             keys[2 * c + side] = key
-            hints[2 * c + side] = key_depth_bits(key)
-        else:
-            hints[2 * c + side] = key_depth_bits(EMPTY_KEY)
 
 
 @wp.kernel(enable_backward=False)
 def lamp_forget(
     # outputs
     keys: wp.array[wp.uint64],
-    hints: wp.array[wp.uint32],
 ):
-    t = wp.tid()
-    keys[t] = EMPTY_KEY
-    hints[t] = key_depth_bits(EMPTY_KEY)
+    keys[wp.tid()] = EMPTY_KEY
 
 
 @wp.kernel(enable_backward=False)
@@ -163,11 +150,8 @@ def lamp_depth(
     offset: wp.vec3i,
     criterion: wp.int32,
     lamp_mask: wp.int32,
-    inv_h_u: wp.vec3,
-    inv_h_v: wp.vec3,
     # outputs
     keys: wp.array[wp.uint64],
-    hints: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
 ):
     """One thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk
@@ -200,7 +184,7 @@ def lamp_depth(
         if pu - r < 0.0 or pv - r < 0.0 or pu + r > hu * float(nu) or pv + r > hv * float(nv):
             outside = 1
         base = offset[a]
-        rows = cell_span(pv - r, pv + r, inv_h_v[a], nv, criterion)
+        rows = cell_span(pv - r, pv + r, hv, nv, criterion)
         for j in range(rows[0], rows[1] + 1):
             # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
             # of cells and the span from w = sqrt(rem) brackets it.
@@ -209,21 +193,21 @@ def lamp_depth(
             if rem < 0.0:
                 continue
             w = wp.sqrt(rem)
-            cols = cell_span(pu - w, pu + w, inv_h_u[a], nu, criterion)
+            cols = cell_span(pu - w, pu + w, hu, nu, criterion)
             row = 2 * (base + j * nu)
             # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
-            # in float32 (sqrt and subtraction are monotone). Where every cell's depth hint already beats that
-            # bound, the row is done with one 8-byte load per cell and no sqrt or key packing; ties keep it live.
+            # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
+            # the row is done with one load per cell and no sqrt or key packing; ties keep the row alive.
             reach = lamp_reach(rem, 0.0, criterion)
-            lo_bound = ordered_bits(pd - reach)
-            hi_bound = ordered_bits(-(pd + reach))
+            lo_bound = pack_key(pd - reach, 0)
+            hi_bound = pack_key(-(pd + reach), 0)
             lo_live = int(0)
             hi_live = int(0)
             for i in range(cols[0], cols[1] + 1):
                 slot = row + 2 * i
-                if lo_on != 0 and hints[slot] >= lo_bound:
+                if lo_on != 0 and keys[slot] >= lo_bound:
                     lo_live = 1
-                if hi_on != 0 and hints[slot + 1] >= hi_bound:
+                if hi_on != 0 and keys[slot + 1] >= hi_bound:
                     hi_live = 1
             if lo_live + hi_live == 0:
                 continue
@@ -233,9 +217,9 @@ def lamp_depth(
                     s = lamp_reach(rem, du, criterion)
                     slot = row + 2 * i
                     if lo_live != 0:
-                        offer(keys, hints, slot, pack_key(pd - s, pid))
+                        offer(keys, slot, pack_key(pd - s, pid))
                     if hi_live != 0:
-                        offer(keys, hints, slot + 1, pack_key(-(pd + s), pid))
+                        offer(keys, slot + 1, pack_key(-(pd + s), pid))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
 
