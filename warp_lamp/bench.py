@@ -187,7 +187,14 @@ def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: 
             seed_launch()
         with wp.ScopedCapture(device=device) as cap_depth:
             seed_launch()
-            wp.launch(KL.lamp_depth, dim=n, inputs=depth, outputs=[lamp.keys, lamp.diag], device=device)
+            wp.launch(
+                KL.lamp_depth,
+                dim=n,
+                inputs=depth,
+                outputs=[lamp.keys, lamp.diag],
+                device=device,
+                block_dim=KL.DEPTH_BLOCK_DIM,
+            )
         t_fill = _median_gpu_time(lambda: wp.capture_launch(cap_seed.graph), device, repeats)
         out["seed_s"] = t_fill
         out["depth_s"] = _median_gpu_time(lambda: wp.capture_launch(cap_depth.graph), device, repeats) - t_fill

@@ -218,6 +218,7 @@ class ShiningLamp:
             ],
             outputs=[self.keys, self.diag],
             device=d,
+            block_dim=K.DEPTH_BLOCK_DIM,
         )
         wp.launch(K.lamp_scatter, dim=self._n_cells, inputs=[self.keys, self._offset], outputs=[self.counts], device=d)
 

@@ -10,11 +10,11 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, ".")
-from warp_lamp.bench import _lattice_grid, _median_gpu_time  # noqa: E402
-from warp_lamp.kernels import lamp as KL  # noqa: E402
-from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach, pack_key  # noqa: E402
-from warp_lamp.lamp import ShiningLamp  # noqa: E402
-from warp_lamp.scenes import scene_lattice_box  # noqa: E402
+from warp_lamp.bench import _lattice_grid, _median_gpu_time
+from warp_lamp.kernels import lamp as KL
+from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach, pack_key
+from warp_lamp.lamp import ShiningLamp
+from warp_lamp.scenes import scene_lattice_box
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -22,7 +22,7 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 @wp.func
 def row_live(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, bound: wp.uint64, side: int) -> int:
     """Any key of the row at or above bound? Four cells per step, loads issued before any compare."""
-    live = int(0)
+    live = 0
     i = c0
     while i <= c1:
         k0 = keys[row + 2 * i + side]
@@ -37,9 +37,156 @@ def row_live(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, bound: wp.ui
 
 
 @wp.func
+def row_live_both(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, lo: wp.uint64, hi: wp.uint64) -> int:
+    """Bit 0: a low key of the row at or above lo; bit 1: a high key at or above hi. Both sides of four cells
+    per step: eight independent loads before the first compare."""
+    live = 0
+    i = c0
+    while i <= c1:
+        s0 = row + 2 * i
+        s1 = row + 2 * wp.min(i + 1, c1)
+        s2 = row + 2 * wp.min(i + 2, c1)
+        s3 = row + 2 * wp.min(i + 3, c1)
+        l0 = keys[s0]
+        h0 = keys[s0 + 1]
+        l1 = keys[s1]
+        h1 = keys[s1 + 1]
+        l2 = keys[s2]
+        h2 = keys[s2 + 1]
+        l3 = keys[s3]
+        h3 = keys[s3 + 1]
+        if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
+            live = live | 1
+        if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
+            live = live | 2
+        i += 4
+    return live
+
+
+@wp.func
+def axis_pass_both(
+    a: int,
+    pid: int,
+    q: wp.vec4,
+    keys: wp.array[wp.uint64],
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
+):
+    r = q[3]
+    r2 = r * r
+    pu = q[(a + 1) % 3] - corner_u[a]
+    pv = q[(a + 2) % 3] - corner_v[a]
+    pd = q[a]
+    hu = h_u[a]
+    hv = h_v[a]
+    nu = n_u[a]
+    nv = n_v[a]
+    base = offset[a]
+    rows = cell_span(pv - r, pv + r, hv, nv, criterion)
+    for j in range(rows[0], rows[1] + 1):
+        dv = cell_offset(j, hv, pv, criterion)
+        rem = r2 - dv * dv
+        if rem < 0.0:
+            continue
+        w = wp.sqrt(rem)
+        cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+        if cols[0] > cols[1]:
+            continue
+        row = 2 * (base + j * nu)
+        reach = lamp_reach(rem, 0.0, criterion)
+        live = row_live_both(keys, row, cols[0], cols[1], pack_key(pd - reach, 0), pack_key(-(pd + reach), 0))
+        if live == 0:
+            continue
+        for i in range(cols[0], cols[1] + 1):
+            du = cell_offset(i, hu, pu, criterion)
+            if du * du <= rem:
+                s = lamp_reach(rem, du, criterion)
+                slot = row + 2 * i
+                if (live & 1) != 0:
+                    KL.offer(keys, slot, pack_key(pd - s, pid))
+                if (live & 2) != 0:
+                    KL.offer(keys, slot + 1, pack_key(-(pd + s), pid))
+
+
+@wp.kernel(enable_backward=False)
+def depth_both(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
+    lamp_mask: int,
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
+):
+    pid = wp.tid()
+    q = KL.particle_frame(pid, positions.shape[0], positions, radii, active, origin)
+    if q[3] == 0.0:
+        return
+    for a in range(3):
+        axis_pass_both(a, pid, q, keys, corner_u, corner_v, h_u, h_v, n_u, n_v, offset, criterion)
+
+
+@wp.kernel(enable_backward=False)
+def depth_both_per_axis(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
+    lamp_mask: int,
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
+):
+    t = wp.tid()
+    n = positions.shape[0]
+    a = t / n
+    pid = t - a * n
+    q = KL.particle_frame(pid, n, positions, radii, active, origin)
+    if q[3] == 0.0:
+        return
+    if a == 0:
+        axis_pass_both(0, pid, q, keys, corner_u, corner_v, h_u, h_v, n_u, n_v, offset, criterion)
+    elif a == 1:
+        axis_pass_both(1, pid, q, keys, corner_u, corner_v, h_u, h_v, n_u, n_v, offset, criterion)
+    else:
+        axis_pass_both(2, pid, q, keys, corner_u, corner_v, h_u, h_v, n_u, n_v, offset, criterion)
+
+
+@wp.func
 def axis_pass(
-    a: int, pid: int, q: wp.vec4, keys: wp.array[wp.uint64], corner_u: wp.vec3, corner_v: wp.vec3,
-    h_u: wp.vec3, h_v: wp.vec3, n_u: wp.vec3i, n_v: wp.vec3i, offset: wp.vec3i, criterion: int,
+    a: int,
+    pid: int,
+    q: wp.vec4,
+    keys: wp.array[wp.uint64],
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
 ):
     r = q[3]
     r2 = r * r
@@ -80,9 +227,21 @@ def axis_pass(
 
 @wp.kernel(enable_backward=False)
 def depth_chunked(
-    positions: wp.array[wp.vec3], radii: wp.array[wp.float32], active: wp.array[wp.int32], origin: wp.vec3,
-    corner_u: wp.vec3, corner_v: wp.vec3, h_u: wp.vec3, h_v: wp.vec3, n_u: wp.vec3i, n_v: wp.vec3i,
-    offset: wp.vec3i, criterion: int, lamp_mask: int, keys: wp.array[wp.uint64], diag: wp.array[wp.int32],
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
+    lamp_mask: int,
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
 ):
     pid = wp.tid()
     q = KL.particle_frame(pid, positions.shape[0], positions, radii, active, origin)
@@ -94,9 +253,21 @@ def depth_chunked(
 
 @wp.kernel(enable_backward=False)
 def depth_per_axis(
-    positions: wp.array[wp.vec3], radii: wp.array[wp.float32], active: wp.array[wp.int32], origin: wp.vec3,
-    corner_u: wp.vec3, corner_v: wp.vec3, h_u: wp.vec3, h_v: wp.vec3, n_u: wp.vec3i, n_v: wp.vec3i,
-    offset: wp.vec3i, criterion: int, lamp_mask: int, keys: wp.array[wp.uint64], diag: wp.array[wp.int32],
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    origin: wp.vec3,
+    corner_u: wp.vec3,
+    corner_v: wp.vec3,
+    h_u: wp.vec3,
+    h_v: wp.vec3,
+    n_u: wp.vec3i,
+    n_v: wp.vec3i,
+    offset: wp.vec3i,
+    criterion: int,
+    lamp_mask: int,
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
 ):
     t = wp.tid()
     n = positions.shape[0]
@@ -134,8 +305,7 @@ def main():
         def run(kernel, dim, seed_only=False, block_dim=256):
             wp.launch(KL.lamp_seed, dim=lamp._n_cells, inputs=seed, outputs=[lamp.keys], device=dev)
             if not seed_only:
-                wp.launch(kernel, dim=dim, inputs=args, outputs=[lamp.keys, lamp.diag], device=dev,
-                          block_dim=block_dim)
+                wp.launch(kernel, dim=dim, inputs=args, outputs=[lamp.keys, lamp.diag], device=dev, block_dim=block_dim)
 
         def timed(fn):
             if not dev.is_cuda:
@@ -148,21 +318,32 @@ def main():
         # Cold variants: every key starts empty, so the atomics are all there.
         variants = (
             ("A library", KL.lamp_depth, n, 256),
-            ("A bd128", KL.lamp_depth, n, 128),
-            ("A bd64", KL.lamp_depth, n, 64),
             ("B chunked", depth_chunked, n, 256),
-            ("C per-axis", depth_per_axis, 3 * n, 256),
+            ("B chunked128", depth_chunked, n, 128),
             ("C bd128", depth_per_axis, 3 * n, 128),
+            ("D both", depth_both, n, 256),
+            ("D both128", depth_both, n, 128),
+            ("E both/axis", depth_both_per_axis, 3 * n, 256),
+            ("E both/axis128", depth_both_per_axis, 3 * n, 128),
         )
         for name, kernel, dim, bd in variants:
             t = timed(lambda k=kernel, d=dim, b=bd: run(k, d, block_dim=b)) - t_seed
             same = np.array_equal(lamp.keys.numpy(), reference)
             lamp.forget()
-            t_cold = _median_gpu_time(lambda k=kernel, d=dim: (lamp.forget(), wp.launch(
-                k, dim=d, inputs=args, outputs=[lamp.keys, lamp.diag], device=dev)), dev, max(3, reps // 5))
+            t_cold = _median_gpu_time(
+                lambda k=kernel, d=dim: (
+                    lamp.forget(),
+                    wp.launch(k, dim=d, inputs=args, outputs=[lamp.keys, lamp.diag], device=dev),
+                ),
+                dev,
+                max(3, reps // 5),
+            )
             same_cold = np.array_equal(lamp.keys.numpy(), reference)
-            print(f"n={n:>10,} {name:<11} warm depth {t * 1e3:.4f} ms  cold depth+forget {t_cold * 1e3:.4f} ms  "
-                  f"keys equal: {same} {same_cold}", flush=True)
+            print(
+                f"n={n:>10,} {name:<15} warm depth {t * 1e3:.4f} ms  cold depth+forget {t_cold * 1e3:.4f} ms  "
+                f"keys equal: {same} {same_cold}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -24,6 +24,10 @@ from warp_lamp.kernels.footprint import (
 # the last bit and CPU and GPU owners stop being bitwise equal.
 wp.set_module_options({"enable_backward": False, "fuse_fp": False, "optimization_level": 3})
 
+#: Threads per block of the depth pass: 128 beat 256 by 7-9% on an H200 once the row filter issues its loads
+#: in chunks (bench/NOTES.md v4).
+DEPTH_BLOCK_DIM = 128
+
 DIAG_INVALID = wp.constant(0)
 DIAG_OUTSIDE = wp.constant(1)
 
@@ -33,6 +37,37 @@ def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
     # Read before the atomic: a losing candidate costs a load instead of an L2 atomic round trip.
     if key < keys[slot]:
         wp.atomic_min(keys, slot, key)
+
+
+@wp.func
+def row_live(keys: wp.array[wp.uint64], row: wp.int32, c0: wp.int32, c1: wp.int32, lo: wp.uint64, hi: wp.uint64):
+    """Bit 0: some low key of cells c0..c1 is >= lo; bit 1: some high key is >= hi.
+
+    Four cells per step, all eight loads issued before the first compare: with almost no atomics left, the
+    depth pass waits on L2 latency, and a warp that used each load in its own iteration stalled once per cell
+    (measured: 26% off the warm depth pass, bench/NOTES.md v4). Indices past c1 re-read c1.
+    """
+    live = int(0)
+    i = c0
+    while i <= c1:
+        s0 = row + 2 * i
+        s1 = row + 2 * wp.min(i + 1, c1)
+        s2 = row + 2 * wp.min(i + 2, c1)
+        s3 = row + 2 * wp.min(i + 3, c1)
+        l0 = keys[s0]
+        h0 = keys[s0 + 1]
+        l1 = keys[s1]
+        h1 = keys[s1 + 1]
+        l2 = keys[s2]
+        h2 = keys[s2 + 1]
+        l3 = keys[s3]
+        h3 = keys[s3 + 1]
+        if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
+            live = live | 1
+        if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
+            live = live | 2
+        i += 4
+    return live
 
 
 @wp.kernel(enable_backward=False)
@@ -170,9 +205,8 @@ def lamp_depth(
     r2 = r * r
     outside = int(0)
     for a in range(3):
-        lo_on = (lamp_mask >> (2 * a)) & 1
-        hi_on = (lamp_mask >> (2 * a + 1)) & 1
-        if lo_on + hi_on == 0:
+        lamp_bits = (lamp_mask >> (2 * a)) & 3
+        if lamp_bits == 0:
             continue
         pu = q[(a + 1) % 3] - corner_u[a]
         pv = q[(a + 2) % 3] - corner_v[a]
@@ -197,28 +231,20 @@ def lamp_depth(
             row = 2 * (base + j * nu)
             # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
             # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
-            # the row is done with one load per cell and no sqrt or key packing; ties keep the row alive.
+            # the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
             reach = lamp_reach(rem, 0.0, criterion)
-            lo_bound = pack_key(pd - reach, 0)
-            hi_bound = pack_key(-(pd + reach), 0)
-            lo_live = int(0)
-            hi_live = int(0)
-            for i in range(cols[0], cols[1] + 1):
-                slot = row + 2 * i
-                if lo_on != 0 and keys[slot] >= lo_bound:
-                    lo_live = 1
-                if hi_on != 0 and keys[slot + 1] >= hi_bound:
-                    hi_live = 1
-            if lo_live + hi_live == 0:
+            live = row_live(keys, row, cols[0], cols[1], pack_key(pd - reach, 0), pack_key(-(pd + reach), 0))
+            live = live & lamp_bits
+            if live == 0:
                 continue
             for i in range(cols[0], cols[1] + 1):
                 du = cell_offset(i, hu, pu, criterion)
                 if du * du <= rem:
                     s = lamp_reach(rem, du, criterion)
                     slot = row + 2 * i
-                    if lo_live != 0:
+                    if (live & 1) != 0:
                         offer(keys, slot, pack_key(pd - s, pid))
-                    if hi_live != 0:
+                    if (live & 2) != 0:
                         offer(keys, slot + 1, pack_key(-(pd + s), pid))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
