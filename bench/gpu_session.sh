@@ -7,7 +7,7 @@ OUT="${OUT:-/tmp/out}"
 mkdir -p "$OUT"
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv | tee "$OUT/gpu.txt"
 python3 -m pytest -q -p no:cacheprovider tests 2>&1 | tee "$OUT/pytest.log" | tail -15
-python3 -m warp_lamp bench --json "$OUT/bench.json" --no-progress 2>&1 | tee "$OUT/bench.log"
+WARP_LAMP_COMMIT="${WARP_LAMP_COMMIT:-unknown}" python3 -m warp_lamp bench --json "$OUT/bench.json" --no-progress 2>&1 | tee "$OUT/bench.log"
 python3 bench/fuse_fp.py 2>&1 | tee "$OUT/fuse_fp.log"
 echo "== summary =="
 tail -3 "$OUT/pytest.log"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime
+import os
 import platform
 import subprocess
 import sys
@@ -265,6 +266,8 @@ class _Progress:
 
 
 def _git_commit() -> str:
+    if os.environ.get("WARP_LAMP_COMMIT"):  # the device machine gets a copy of the tree without .git
+        return os.environ["WARP_LAMP_COMMIT"]
     try:
         root = Path(__file__).resolve().parent.parent
         return subprocess.check_output(
@@ -427,7 +430,7 @@ def plot(result: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    fig, ax = plt.subplots(figsize=(6.4, 5.2))
     keys = sorted({(s["device"], s["criterion"]) for s in result["sweep"]})
     for dev, crit in keys:
         pts = [s for s in result["sweep"] if s["device"] == dev and s["criterion"] == crit]
@@ -441,6 +444,6 @@ def plot(result: dict, path: str) -> None:
     ax.set_ylabel("full update [ms]")
     ax.set_title("Shining lamp: time against error")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.legend(fontsize=7, loc="lower center", ncol=2, frameon=False)
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     fig.savefig(path, dpi=120)

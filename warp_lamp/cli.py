@@ -82,6 +82,7 @@ def main(argv=None) -> int:
     bench.add_argument("--plot", metavar="PATH", help="time against error as a PNG (needs the plot extra)")
     bench.add_argument("--repeats", type=int, default=None, help="timed repeats per figure")
     bench.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bench.add_argument("--from-json", metavar="PATH", help="print and plot a saved result instead of measuring")
     args = parser.parse_args(argv)
     if args.command == "bench":
         return _bench(args)
@@ -97,7 +98,11 @@ def _bench(args) -> int:
     wp.init()
     from warp_lamp.bench import bench_lamp, format_tables, plot
 
-    result = bench_lamp(args.device, quick=args.quick, progress=not args.no_progress, repeats=args.repeats)
+    if args.from_json:
+        with open(args.from_json) as f:
+            result = json.load(f)
+    else:
+        result = bench_lamp(args.device, quick=args.quick, progress=not args.no_progress, repeats=args.repeats)
     print(format_tables(result))
     if args.json:
         with open(args.json, "w") as f:
