@@ -207,9 +207,9 @@ def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: 
     lit = lamp.diagnostics().lit
     out["lit_cells"] = int(sum(lit.values()))
     out["expected_updates"] = _expected_updates(scene.radii, grid, criterion)
-    out["bytes_per_sphere"] = 12 + 4 + 12 + 8  # positions, radii (caller's), counts, lit flags (lamp's)
-    out["bytes_per_cell"] = 16
-    out["lamp_bytes"] = grid.nbytes + 20 * n
+    out["bytes_per_sphere"] = 12 + 4 + 12  # positions, radii (the caller's), signed counts (the lamp's)
+    out["bytes_per_cell"] = 16  # a uint64 key per lamp, two lamps per cell
+    out["lamp_bytes"] = grid.nbytes + 12 * n
     return out
 
 
@@ -402,6 +402,18 @@ def format_tables(result: dict) -> str:
             f"{r.get('reference_s', float('nan')):.2f}",
         ]
         lines.append("| " + " | ".join(cells) + " |")
+    for r in result["speed"]:
+        if "reference_s" in r:
+            best = r["replay_s"] or r["eager_s"]
+            lines.append(
+                f"\nNumPy float64 reference on {r['device']}, {r['n']:,} spheres: {r['reference_s']:.2f} s, "
+                f"{r['reference_s'] / best:,.0f}x the lamp's update"
+            )
+    r0 = result["speed"][-1]
+    lines.append(
+        f"Memory: {r0['bytes_per_sphere']} B per sphere (12 position + 4 radius of the caller's, 12 counts "
+        f"of the lamp's), {r0['bytes_per_cell']} B per cell; nothing allocated per update."
+    )
     lines += ["", "Error (lone sphere E_area; SphereTest specimen stress from the loads, envelope volume):", ""]
     lines.append("| criterion | cells/diameter | E_area RMS | mean p / P | deviatoric / P | moment / (P pi R^3) |")
     lines.append("| --- | --- | --- | --- | --- | --- |")
