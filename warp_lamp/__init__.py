@@ -2,6 +2,17 @@
 
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import LAMPS, LampDiagnostics, ShiningLamp, lamp_forces, lamp_solve
+from warp_lamp.porosity import POROSITY_METHODS, kozeny_carman, porosity
 
-__all__ = ["LAMPS", "LampDiagnostics", "LampGrid", "ShiningLamp", "lamp_forces", "lamp_solve"]
+__all__ = [
+    "LAMPS",
+    "POROSITY_METHODS",
+    "LampDiagnostics",
+    "LampGrid",
+    "ShiningLamp",
+    "kozeny_carman",
+    "lamp_forces",
+    "lamp_solve",
+    "porosity",
+]
 __version__ = "0.1.0"

@@ -60,6 +60,15 @@ def cell_span(lo: wp.float32, hi: wp.float32, h: wp.float32, n: wp.int32, centre
 
 
 @wp.func
+def cell_index_span(lo: wp.float64, hi: wp.float64, h: wp.float64, n: wp.int32) -> wp.vec2i:
+    """Cells [i h, (i+1) h) of 0..n-1 that [lo, hi] reaches, clamped (in float, so far spheres cannot overflow)."""
+    nf = wp.float64(n)
+    a = wp.clamp(wp.floor(lo / h), wp.float64(0.0), nf)
+    b = wp.clamp(wp.floor(hi / h), wp.float64(-1.0), nf - wp.float64(1.0))
+    return wp.vec2i(wp.int32(a), wp.int32(b))
+
+
+@wp.func
 def rect_gap(x: wp.float32, lo: wp.float32, hi: wp.float32) -> wp.float32:
     """Distance from x to the interval [lo, hi] (zero inside)."""
     return wp.max(wp.max(lo - x, x - hi), 0.0)
