@@ -10,10 +10,18 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Scene", "scene_lattice_ball", "scene_lattice_box", "scene_lone_sphere", "scene_sphere_specimen"]
+__all__ = [
+    "Scene",
+    "relax_packing",
+    "scene_lattice_ball",
+    "scene_lattice_box",
+    "scene_lone_sphere",
+    "scene_overlapping_box",
+    "scene_sphere_specimen",
+]
 
 #: Bump when the packing algorithm changes, so that cached specimens are rebuilt.
-_PACKING_VERSION = 1
+_PACKING_VERSION = 2
 
 
 @dataclass
@@ -148,11 +156,73 @@ def scene_sphere_specimen(
 MOMENTUM = 0.8
 
 
-def _relax_packing(R, rmean, ratio, porosity, seed, device, tol=0.0099, max_iter=20000):
+def relax_packing(
+    x0: np.ndarray,
+    radii: np.ndarray,
+    *,
+    body_radius: float = 0.0,
+    box=None,
+    tol: float = 0.0099,
+    scale: float = 0.5,
+    grow: float = 1.004,
+    max_iter: int = 20000,
+    device=None,
+) -> np.ndarray:
+    """Overlap relaxation on a ``wp.HashGrid``: grow the particles from ``scale`` to full size while pushing
+    overlapping pairs apart (Jacobi steps with momentum) and the container back, until no overlap exceeds
+    ``tol`` of the smaller radius. Returns the centres, float64.
+
+    Args:
+        x0: Initial centres [m], shape (N, 3).
+        radii: Radii [m], shape (N,).
+        body_radius: Container ball about the origin [m], or 0 to use ``box``.
+        box: Container box ``(lower, upper)`` [m] when ``body_radius`` is 0.
+        tol: Largest overlap left, as a fraction of the smaller radius of the pair.
+        scale: Starting size, as a fraction of the radii.
+        grow: Size factor per 10 steps while overlaps are moderate.
+        max_iter: Steps before giving up with RuntimeError.
+        device: Warp device.
+    """
     import warp as wp
 
     from warp_lamp.kernels import packing as K
 
+    device = wp.get_device(device)
+    n = len(radii)
+    lo, hi = (np.zeros(3), np.zeros(3)) if box is None else (np.asarray(box[0]), np.asarray(box[1]))
+    x = wp.array(np.asarray(x0, dtype=np.float32), dtype=wp.vec3, device=device)
+    r = wp.array(np.asarray(radii, dtype=np.float32), dtype=wp.float32, device=device)
+    dx = wp.zeros(n, dtype=wp.vec3, device=device)
+    vel = wp.zeros(n, dtype=wp.vec3, device=device)
+    worst = wp.zeros(1, dtype=wp.float32, device=device)
+    dim = max(8, min(128, int(np.ceil(n ** (1.0 / 3.0)))))
+    grid = wp.HashGrid(dim, dim, dim, device=device)
+    query = float(2.0 * np.max(radii))
+    w = np.inf
+    for it in range(max_iter):
+        grid.build(x, query)
+        worst.zero_()
+        wp.launch(
+            K.packing_push,
+            dim=n,
+            inputs=[grid.id, x, r, scale, body_radius, wp.vec3(*lo), wp.vec3(*hi), query],
+            outputs=[dx, worst],
+            device=device,
+        )
+        wp.launch(K.packing_move, dim=n, inputs=[dx, MOMENTUM], outputs=[vel, x], device=device)
+        if it % 10 == 9:
+            w = float(worst.numpy()[0])
+            if scale >= 1.0 and w < tol:
+                break
+            # Grow while overlaps stay moderate; hold the size and relax when they pile up.
+            if w < max(0.05, 2.0 * tol):
+                scale = min(1.0, scale * grow**10)
+    else:
+        raise RuntimeError(f"packing: did not relax below {tol:.1%} overlap in {max_iter} steps (worst {w:.3%})")
+    return x.numpy().astype(np.float64)
+
+
+def _relax_packing(R, rmean, ratio, porosity, seed, device):
     rng = np.random.default_rng(seed)
     rmin = 2.0 * rmean / (1.0 + ratio)
     target = (1.0 - porosity) * 4.0 / 3.0 * np.pi * R**3
@@ -164,28 +234,52 @@ def _relax_packing(R, rmean, ratio, porosity, seed, device, tol=0.0099, max_iter
     v = rng.normal(size=(n, 3))
     v /= np.linalg.norm(v, axis=1)[:, None]
     x0 = v * ((R - radii) * rng.uniform(0.0, 1.0, n) ** (1.0 / 3.0))[:, None]
-    device = wp.get_device(device)
-    x = wp.array(x0.astype(np.float32), dtype=wp.vec3, device=device)
-    r = wp.array(radii.astype(np.float32), dtype=wp.float32, device=device)
-    dx = wp.zeros(n, dtype=wp.vec3, device=device)
-    vel = wp.zeros(n, dtype=wp.vec3, device=device)
-    worst = wp.zeros(1, dtype=wp.float32, device=device)
-    dim = max(8, int(np.ceil(n ** (1.0 / 3.0))))
-    grid = wp.HashGrid(dim, dim, dim, device=device)
-    query = float(2.0 * ratio * rmin)
-    scale, grow = 0.5, 1.004
-    for it in range(max_iter):
-        grid.build(x, query)
-        worst.zero_()
-        wp.launch(K.packing_push, dim=n, inputs=[grid.id, x, r, scale, R, query], outputs=[dx, worst], device=device)
-        wp.launch(K.packing_move, dim=n, inputs=[dx, MOMENTUM], outputs=[vel, x], device=device)
-        if it % 10 == 9:
-            w = float(worst.numpy()[0])
-            if scale >= 1.0 and w < tol:
-                break
-            # Grow while overlaps stay moderate; hold the size and relax when they pile up.
-            if w < 0.05:
-                scale = min(1.0, scale * grow**10)
-    else:
-        raise RuntimeError(f"packing: did not relax below {tol:.1%} overlap in {max_iter} steps (worst {w:.3%})")
-    return x.numpy().astype(np.float64), radii
+    return relax_packing(x0, radii, body_radius=R, device=device), radii
+
+
+def scene_overlapping_box(
+    radius: float,
+    size=(0.1, 0.1, 0.2),
+    *,
+    solid_fraction: float = 0.62,
+    max_overlap: float = 0.1,
+    seed: int = 0,
+    device=None,
+    cache: bool = True,
+) -> Scene:
+    """The paper's section 3.2 set-up: a box filled densely with equal spheres that overlap.
+
+    Enough spheres of ``radius`` to make the summed sphere volume ``solid_fraction`` of the box, placed at random
+    at 80% size and relaxed in Warp (as :func:`relax_packing`) until no overlap exceeds ``max_overlap`` of a
+    radius: dense, and overlapping as soft DEM contacts do. Cached on disk like the specimen.
+
+    Args:
+        radius: Sphere radius [m] (the paper: 1, 2.5 and 5 mm).
+        size: Box edges [m]; the box spans [0, size].
+        solid_fraction: Summed sphere volume over box volume.
+        max_overlap: Largest overlap kept, as a fraction of the radius.
+        seed: Random seed.
+        device: Warp device for the relaxation.
+        cache: Read and write the on-disk cache.
+    """
+    size = np.asarray(size, dtype=np.float64)
+    params = dict(
+        kind="box", r=radius, size=size.tolist(), phi=solid_fraction, ov=max_overlap, seed=seed, v=_PACKING_VERSION
+    )
+    key = hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_dir() / f"box-{key}.npz"
+    name = f"overlapping box, r = {radius * 1e3:g} mm"
+    if cache and path.exists():
+        data = np.load(path)
+        return Scene(name, data["centers"], data["radii"], size / 2.0)
+    rng = np.random.default_rng(seed)
+    n = round(float(solid_fraction * np.prod(size) / (4.0 / 3.0 * np.pi * radius**3)))
+    radii = np.full(n, radius)
+    x0 = rng.uniform(radius, size - radius, (n, 3))
+    centers = relax_packing(x0, radii, box=(np.zeros(3), size), tol=max_overlap, scale=0.8, device=device)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, centers=centers, radii=radii)
+        os.replace(tmp, path)
+    return Scene(name, centers, radii, size / 2.0)

@@ -12,12 +12,15 @@ def packing_push(
     radii: wp.array[wp.float32],
     scale: wp.float32,
     body_radius: wp.float32,
+    box_lower: wp.vec3,
+    box_upper: wp.vec3,
     query_radius: wp.float32,
     # outputs
     dx: wp.array[wp.vec3],
     worst: wp.array[wp.float32],
 ):
-    """Jacobi step: each particle moves by half of every overlap it has, and back inside the container."""
+    """Jacobi step: each particle moves by half of every overlap it has, and back inside the container: the ball
+    of ``body_radius`` about the origin when it is > 0, else the box [box_lower, box_upper]."""
     i = wp.tid()
     xi = x[i]
     ri = radii[i] * scale
@@ -38,11 +41,22 @@ def packing_push(
                     n = wp.vec3(-1.0, 0.0, 0.0)
                 d += 0.5 * ov * n
                 wp.atomic_max(worst, 0, ov / wp.min(ri, rj))
-    dc = wp.length(xi)
-    excess = dc + ri - body_radius
-    if excess > 0.0 and dc > 0.0:
-        d -= excess * xi / dc
-        wp.atomic_max(worst, 0, excess / ri)
+    if body_radius > 0.0:
+        dc = wp.length(xi)
+        excess = dc + ri - body_radius
+        if excess > 0.0 and dc > 0.0:
+            d -= excess * xi / dc
+            wp.atomic_max(worst, 0, excess / ri)
+    else:
+        for a in range(3):
+            low = box_lower[a] + ri - xi[a]
+            high = xi[a] + ri - box_upper[a]
+            if low > 0.0:
+                d[a] = d[a] + low
+                wp.atomic_max(worst, 0, low / ri)
+            elif high > 0.0:
+                d[a] = d[a] - high
+                wp.atomic_max(worst, 0, high / ri)
     dx[i] = d
 
 
