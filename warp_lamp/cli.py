@@ -75,7 +75,10 @@ def main(argv=None) -> int:
         p.add_argument("--pressure", type=float, default=10e6, help="fluid pressure [Pa]")
         p.add_argument("--repeats", type=int, default=5, help="timed updates")
     bench = sub.add_parser("bench", help="speed against error, on every device present, with peers")
-    bench.add_argument("what", nargs="?", default="lamp", choices=("lamp",), help="what to benchmark")
+    bench.add_argument("what", nargs="?", default="lamp", choices=("lamp", "porosity"), help="what to benchmark")
+    bench.add_argument("--paper", action="store_true", help="porosity: also reproduce the paper's Table 1 and 3.2")
+    bench.add_argument("--target", action="store_true", help="porosity: also time the 1 mm, 0.1 mm target scene")
+    bench.add_argument("--histograms", metavar="PATH", help="porosity --paper: histograms as a PNG")
     bench.add_argument("--quick", action="store_true", help="a CPU-sized subset, under a minute")
     bench.add_argument("--device", action="append", help="a warp device to time (repeatable; default: all)")
     bench.add_argument("--json", metavar="PATH", help="write the results as JSON")
@@ -98,6 +101,8 @@ def _bench(args) -> int:
     wp.init()
     from warp_lamp.bench import bench_lamp, format_tables, plot
 
+    if args.what == "porosity":
+        return _bench_porosity(args)
     if args.from_json:
         with open(args.from_json) as f:
             result = json.load(f)
@@ -111,4 +116,27 @@ def _bench(args) -> int:
     if args.plot:
         plot(result, args.plot)
         print(f"wrote {args.plot}")
+    return 0
+
+
+def _bench_porosity(args) -> int:
+    import json
+
+    from warp_lamp import bench_porosity as bp
+
+    if args.from_json:
+        with open(args.from_json) as f:
+            saved = json.load(f)
+        result, paper = saved.get("bench"), saved.get("paper")
+    else:
+        result = bp.bench_porosity(args.device, quick=args.quick, progress=not args.no_progress, target=args.target)
+        paper = bp.paper_experiment((args.device or [None])[-1], quick=args.quick) if args.paper else None
+    print(bp.format_porosity(result, paper))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"bench": result, "paper": paper}, f, indent=1)
+        print(f"\nwrote {args.json}")
+    if args.histograms and paper:
+        bp.plot_histograms(paper, args.histograms)
+        print(f"wrote {args.histograms}")
     return 0

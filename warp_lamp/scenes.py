@@ -241,7 +241,7 @@ def scene_overlapping_box(
     radius: float,
     size=(0.1, 0.1, 0.2),
     *,
-    solid_fraction: float = 0.62,
+    solid_fraction: float = 0.6,
     max_overlap: float = 0.1,
     seed: int = 0,
     device=None,
