@@ -22,7 +22,7 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 @wp.func
 def row_live(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, bound: wp.uint64, side: int) -> int:
     """Any key of the row at or above bound? Four cells per step, loads issued before any compare."""
-    live = 0
+    live = int(0)
     i = c0
     while i <= c1:
         k0 = keys[row + 2 * i + side]
@@ -40,7 +40,7 @@ def row_live(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, bound: wp.ui
 def row_live_both(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, lo: wp.uint64, hi: wp.uint64) -> int:
     """Bit 0: a low key of the row at or above lo; bit 1: a high key at or above hi. Both sides of four cells
     per step: eight independent loads before the first compare."""
-    live = 0
+    live = int(0)
     i = c0
     while i <= c1:
         s0 = row + 2 * i
