@@ -152,39 +152,40 @@ def _octant_f(y, a, c, r):
     return a * c * y - 0.5 * a * i1 - 0.5 * c * i2 + 0.5 * ((v * acos_a + kP) - (v * asin_c - kQ))
 
 
-def octant_volume(a, b, c, r):
+def octant_volume(a, b, c, r, dtype=np.float64):
     """Volume of {|p| <= r, x >= a, y >= b, z >= c}, a, b, c >= 0 (arrays broadcast).
 
     The integral over y of the area {x >= a, z >= c} of the disk at height y, done in closed form: inner
     integral over z, then integration by parts for the r^2 - y^2 weighted angle terms. Inverse trig as atan2.
     """
-    a, b, c, r = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (a, b, c, r)))
+    a, b, c, r = np.broadcast_arrays(*(np.asarray(x, dtype=dtype) for x in (a, b, c, r)))
     top = np.sqrt(np.maximum(r * r - a * a - c * c, 0.0))
     inside = (a * a + b * b + c * c < r * r) & (b < top)
-    return np.where(inside, _octant_f(top, a, c, r) - _octant_f(np.minimum(b, top), a, c, r), 0.0)
+    return np.where(inside, _octant_f(top, a, c, r) - _octant_f(np.minimum(b, top), a, c, r), dtype(0.0))
 
 
-def sphere_box_volume(lo, hi, r):
+def sphere_box_volume(lo, hi, r, dtype=np.float64):
     """Volume of the ball of radius r at the origin inside the box [lo, hi]; lo, hi shape (..., 3).
 
     Inclusion-exclusion over the box's 8 corners of the corner volumes {x >= a, y >= b, z >= c}; a negative
     bound is the whole axis (twice the half at 0, by symmetry) minus the mirrored positive bound.
     """
-    r = np.asarray(r, dtype=np.float64)
-    lo = np.maximum(np.asarray(lo, dtype=np.float64), -r[..., None])
-    hi = np.minimum(np.asarray(hi, dtype=np.float64), r[..., None])
-    total = 0.0
+    r = np.asarray(r, dtype=dtype)
+    lo = np.maximum(np.asarray(lo, dtype=dtype), -r[..., None])
+    hi = np.minimum(np.asarray(hi, dtype=dtype), r[..., None])
+    total = dtype(0.0)
     for corner in range(8):
         bounds = [hi[..., d] if corner >> d & 1 else lo[..., d] for d in range(3)]
         sign = -1.0 if bin(corner).count("1") % 2 else 1.0
+        one, two, zero = dtype(1.0), dtype(2.0), dtype(0.0)
         terms = [
-            [(np.where(x < 0, 2.0, 1.0), np.maximum(x, 0.0)), (np.where(x < 0, -1.0, 0.0), np.abs(x))] for x in bounds
+            [(np.where(x < 0, two, one), np.maximum(x, zero)), (np.where(x < 0, -one, zero), np.abs(x))] for x in bounds
         ]
         for fa, xa in terms[0]:
             for fb, xb in terms[1]:
                 for fc, xc in terms[2]:
-                    total = total + sign * fa * fb * fc * octant_volume(xa, xb, xc, r)
-    return np.where(np.all(hi > lo, axis=-1), total, 0.0)
+                    total = total + dtype(sign) * fa * fb * fc * octant_volume(xa, xb, xc, r, dtype)
+    return np.where(np.all(hi > lo, axis=-1), total, dtype(0.0))
 
 
 def midpoint_sphere_offsets(rad: int) -> np.ndarray:
