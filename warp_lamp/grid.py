@@ -141,10 +141,12 @@ class LampGrid:
         lo = np.min(centers - radii[:, None], axis=0) - margin
         hi = np.max(centers + radii[:, None], axis=0) + margin
         h = diameter / cells_per_diameter
-        # Centre whole cells on the body: with lower = min(c - r) - margin the extreme spheres would touch a
-        # cell edge exactly, a tie that float32 rounding then decides.
-        n = np.maximum(np.ceil((hi - lo) / h), 1.0)
-        lower = 0.5 * (lo + hi) - 0.5 * n * h
+        # With lower = min(c - r) - margin, or with the body centred, the extreme spheres can touch a cell edge
+        # exactly whenever the body's extent is a whole number of cells: a tie that float32 rounding decides.
+        # Shift the body by a golden-ratio fraction of the slack instead: irrational, so no whole-cell extent
+        # can bring an extreme onto an edge.
+        n = np.floor((hi - lo) / h) + 1.0
+        lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
         return cls(lower, lower + n * h, h, max_bytes=max_bytes)
 
     def _setup(self, corner, cell, counts, max_bytes, *, origin):
