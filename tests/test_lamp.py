@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import warp_lamp as wl
+from warp_lamp.bench import lone_sphere_error
 from warp_lamp.lamp import lamp_solve, pressure_area
 from warp_lamp.reference import lamp_reference
 
@@ -248,26 +249,10 @@ def test_no_particles(device):
 # --- the memo's analysis ----------------------------------------------------------------------------------
 
 
-def lone_sphere_rms(criterion, cells_per_diameter, device, samples=64, seed=7):
-    """RMS over random sub-cell offsets of F_lamp / (P pi r^2) - 1 for one lamp, with the grid held fixed."""
-    r = 0.5
-    h = 2 * r / cells_per_diameter
-    grid = wl.LampGrid([-1.0] * 3, [1.0] * 3, h)
-    lamp = wl.ShiningLamp(grid, criterion=criterion, device=device)
-    offsets = np.random.default_rng(seed).uniform(0.0, h, (samples, 3))
-    rad = wp.array([r], dtype=wp.float32, device=device)
-    errs = []
-    for off in offsets:
-        lamp.update(wp.array([off], dtype=wp.vec3, device=device), rad)
-        lit = lamp.diagnostics().lit
-        errs.extend(lit[name] * h * h / (np.pi * r * r) - 1.0 for name in wl.LAMPS)
-    return float(np.sqrt(np.mean(np.square(errs))))
-
-
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_lone_sphere_force_converges_to_disk_area(device, criterion):
     """F per lamp -> P pi r^2 as cells shrink: RMS error falls at each halving of the cell."""
-    rms = [lone_sphere_rms(criterion, k, device) for k in (2, 4, 8, 16)]
+    rms = [lone_sphere_error(criterion, k, device, samples=64) for k in (2, 4, 8, 16)]
     assert all(b < 0.8 * a for a, b in itertools.pairwise(rms)), rms
     assert rms[-1] < (0.02 if criterion == 1 else 0.3), rms
 

@@ -5,37 +5,9 @@ import itertools
 import numpy as np
 import pytest
 
+from warp_lamp.bench_porosity import PAPER_TABLE_1, hexahedron_vertices
 from warp_lamp.porosity import kozeny_carman, midpoint_choice, porosity
 from warp_lamp.reference import midpoint_sphere_offsets, porosity_reference
-
-#: Table 1 of Zhang et al. (2024): sub-cells marked by their Algorithm 1 for radius 1 ... 25.
-PAPER_TABLE_1 = [
-    1,
-    35,
-    93,
-    223,
-    529,
-    819,
-    1405,
-    1987,
-    2845,
-    4175,
-    5425,
-    7111,
-    8985,
-    11267,
-    13793,
-    16595,
-    20165,
-    24115,
-    28461,
-    32943,
-    37969,
-    43823,
-    50537,
-    57115,
-    64025,
-]
 
 
 def oracle_solid(centers, radii, lower, upper, shape):
@@ -54,18 +26,7 @@ def oracle_solid(centers, radii, lower, upper, shape):
     for idx in np.ndindex(*shape):
         lo = lower + np.asarray(idx) * h
         hi = lo + h
-        verts = np.array(
-            [
-                [lo[0], lo[1], lo[2]],
-                [hi[0], lo[1], lo[2]],
-                [hi[0], hi[1], lo[2]],
-                [lo[0], hi[1], lo[2]],
-                [lo[0], lo[1], hi[2]],
-                [hi[0], lo[1], hi[2]],
-                [hi[0], hi[1], hi[2]],
-                [lo[0], hi[1], hi[2]],
-            ]
-        )
+        verts = hexahedron_vertices(lo, hi)
         hexa = overlap.Hexahedron(verts)
         for c, r in zip(centers, radii, strict=True):
             if np.all(c + r > lo) and np.all(c - r < hi):

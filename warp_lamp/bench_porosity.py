@@ -9,11 +9,18 @@ import numpy as np
 import warp as wp
 
 from warp_lamp.bench import _git_commit, _median_time, _Progress
-from warp_lamp.porosity import POROSITY_METHODS, kozeny_carman, porosity
+from warp_lamp.porosity import POROSITY_METHODS, count_bitmap, kozeny_carman, porosity
 from warp_lamp.reference import midpoint_sphere_offsets
 from warp_lamp.scenes import scene_overlapping_box
 
-__all__ = ["PAPER_TABLE_1", "bench_porosity", "format_porosity", "paper_experiment", "plot_histograms"]
+__all__ = [
+    "PAPER_TABLE_1",
+    "bench_porosity",
+    "format_porosity",
+    "hexahedron_vertices",
+    "paper_experiment",
+    "plot_histograms",
+]
 
 #: Table 1 of Zhang et al. (2024): sub-cells their Algorithm 1 marks for radius 1 ... 25.
 PAPER_TABLE_1 = [
@@ -46,6 +53,22 @@ PAPER_TABLE_1 = [
 SUBDIVISIONS = (2, 4, 8, 16, 32)
 
 
+def hexahedron_vertices(lo, hi) -> np.ndarray:
+    """The 8 corners of the box [lo, hi] in the order `overlap` expects (bottom face, then top, counter-clockwise)."""
+    return np.array(
+        [
+            [lo[0], lo[1], lo[2]],
+            [hi[0], lo[1], lo[2]],
+            [hi[0], hi[1], lo[2]],
+            [lo[0], hi[1], lo[2]],
+            [lo[0], lo[1], hi[2]],
+            [hi[0], lo[1], hi[2]],
+            [hi[0], hi[1], hi[2]],
+            [lo[0], hi[1], hi[2]],
+        ]
+    )
+
+
 def _error_scene(quick: bool):
     """A packing whose spheres overlap by under 1% of a radius, so that union and sum agree (r = 2.5 mm)."""
     size = (0.04, 0.04, 0.04) if quick else (0.1, 0.1, 0.2)
@@ -69,18 +92,7 @@ def _time_overlap_peer(scene, lower, upper, shape, limit_s: float = 20.0):
         for idx in np.ndindex(*(last - first + 1)):
             lo = lower + (first + idx) * h
             hi = lo + h
-            verts = np.array(
-                [
-                    [lo[0], lo[1], lo[2]],
-                    [hi[0], lo[1], lo[2]],
-                    [hi[0], hi[1], lo[2]],
-                    [lo[0], hi[1], lo[2]],
-                    [lo[0], lo[1], hi[2]],
-                    [hi[0], lo[1], hi[2]],
-                    [hi[0], hi[1], hi[2]],
-                    [lo[0], hi[1], hi[2]],
-                ]
-            )
+            verts = hexahedron_vertices(lo, hi)
             overlap.overlap_volume(overlap.Sphere(tuple(c), float(r)), overlap.Hexahedron(verts))
             pairs += 1
         if time.perf_counter() - t0 > limit_s:
@@ -188,13 +200,7 @@ def _time_voxel_device(pos, rad, args, device) -> dict:
             outputs=[bits],
             device=device,
         )
-        wp.launch(
-            K.bitmap_count,
-            dim=(shape[0], shape[1], sub[2]),
-            inputs=[bits, wp.vec3i(*sub), words, wp.vec3i(s, s, s)],
-            outputs=[counts],
-            device=device,
-        )
+        count_bitmap(bits, shape, s, counts)
 
     run()
     with wp.ScopedCapture(device=device) as cap:

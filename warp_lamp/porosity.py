@@ -8,7 +8,7 @@ import warp as wp
 from warp_lamp.kernels import porosity as K
 from warp_lamp.validate import check_particles
 
-__all__ = ["POROSITY_METHODS", "kozeny_carman", "porosity", "porosity_bitmap_bytes"]
+__all__ = ["POROSITY_METHODS", "count_bitmap", "kozeny_carman", "porosity", "porosity_bitmap_bytes"]
 
 #: Methods of :func:`porosity`: sum kinds count overlaps twice and may go below zero; union kinds do not.
 POROSITY_METHODS = {"centroid": "sum", "polyhedron": "sum", "exact": "sum", "voxel": "union", "midpoint": "union"}
@@ -198,14 +198,20 @@ def porosity(
                 device=device,
             )
     counts = wp.zeros(shape, dtype=wp.int32, device=device)
+    count_bitmap(bits, shape, s, counts)
+    return 1.0 - counts.numpy().astype(np.float64) / float(s**3)
+
+
+def count_bitmap(bits: wp.array, shape, s: int, counts: wp.array) -> None:
+    """Add each cell's solid sub-cells (the set bits of the bitmap of ``shape`` cells of s^3 sub-cells) to counts."""
+    sub = tuple(int(x) * s for x in shape)
     wp.launch(
         K.bitmap_count,
         dim=(shape[0], shape[1], sub[2]),
-        inputs=[bits, wp.vec3i(*sub), words, wp.vec3i(s, s, s)],
+        inputs=[bits, wp.vec3i(*sub), (sub[0] + 31) // 32, wp.vec3i(s, s, s)],
         outputs=[counts],
-        device=device,
+        device=bits.device,
     )
-    return 1.0 - counts.numpy().astype(np.float64) / float(s**3)
 
 
 def kozeny_carman(porosity, particle_radius) -> np.ndarray:

@@ -33,6 +33,16 @@ def key_owner(key: wp.uint64) -> wp.int32:
 
 
 @wp.func
+def cell_axis(c: wp.int32, offset: wp.vec3i) -> wp.int32:
+    """The grid (axis) that flat cell c belongs to, from the grids' first cells."""
+    if c >= offset[2]:
+        return 2
+    if c >= offset[1]:
+        return 1
+    return 0
+
+
+@wp.func
 def cell_span(lo: wp.float32, hi: wp.float32, h: wp.float32, n: wp.int32, centre: wp.int32) -> wp.vec2i:
     """Indices [first, last] of the cells that may meet [lo, hi], clamped to [0, n-1]; first > last if none.
 

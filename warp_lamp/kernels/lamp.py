@@ -12,6 +12,7 @@ import warp as wp
 
 from warp_lamp.kernels.footprint import (
     EMPTY_KEY,
+    cell_axis,
     cell_offset,
     cell_span,
     key_owner,
@@ -134,11 +135,7 @@ def lamp_seed(
     almost no atomics. This replaces clearing the keys.
     """
     c = wp.tid()
-    a = int(0)
-    if c >= offset[2]:
-        a = 2
-    elif c >= offset[1]:
-        a = 1
+    a = cell_axis(c, offset)
     local = c - offset[a]
     j = local / n_u[a]
     i = local - j * n_u[a]
@@ -260,11 +257,7 @@ def lamp_scatter(
     """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
     the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
     c = wp.tid()
-    a = int(0)
-    if c >= offset[2]:
-        a = 2
-    elif c >= offset[1]:
-        a = 1
+    a = cell_axis(c, offset)
     low = keys[2 * c]
     high = keys[2 * c + 1]
     if low != EMPTY_KEY:

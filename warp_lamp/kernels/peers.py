@@ -2,7 +2,7 @@
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import EMPTY_KEY, lamp_reach, pack_key
+from warp_lamp.kernels.footprint import EMPTY_KEY, cell_axis, lamp_reach, pack_key
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -51,11 +51,7 @@ def bvh_cast(
     t = wp.tid()
     c = t / 2
     side = t - 2 * c
-    a = int(0)
-    if c >= offset[2]:
-        a = 2
-    elif c >= offset[1]:
-        a = 1
+    a = cell_axis(c, offset)
     local = c - offset[a]
     nu = n_u[a]
     j = local / nu

@@ -58,47 +58,32 @@ def octant_volume(a: wp.float64, b: wp.float64, c: wp.float64, r: wp.float64) ->
 
 
 @wp.func
-def corner_volume(a: wp.float64, b: wp.float64, c: wp.float64, r: wp.float64) -> wp.float64:
-    """Volume of {|p| <= r, x >= a, y >= b, z >= c} for any signs: a negative bound is the whole axis (twice the
-    half at 0, by symmetry) minus the mirrored positive bound."""
-    total = wp.float64(0.0)
+def bound_term(x: wp.float64, which: int) -> wp.vec2d:
+    """(factor, bound) of term ``which`` (0 or 1) for the half-space {t >= x} of one axis: x >= 0 is the single
+    term (1, x); x < 0 is the whole axis, twice the half at 0, minus the mirrored half: (2, 0) and (-1, -x)."""
     zero = wp.float64(0.0)
+    if x < zero:
+        if which == 0:
+            return wp.vec2d(wp.float64(2.0), zero)
+        return wp.vec2d(wp.float64(-1.0), -x)
+    if which == 0:
+        return wp.vec2d(wp.float64(1.0), x)
+    return wp.vec2d(zero, zero)
+
+
+@wp.func
+def corner_volume(a: wp.float64, b: wp.float64, c: wp.float64, r: wp.float64) -> wp.float64:
+    """Volume of {|p| <= r, x >= a, y >= b, z >= c} for any signs, from octant volumes (see bound_term)."""
+    total = wp.float64(0.0)
     for ia in range(2):
-        fa = wp.float64(1.0)
-        xa = a
-        if a < zero:
-            fa = wp.float64(2.0)
-            xa = zero
-            if ia == 1:
-                fa = wp.float64(-1.0)
-                xa = -a
-        elif ia == 1:
-            fa = zero
+        ta = bound_term(a, ia)
         for ib in range(2):
-            fb = wp.float64(1.0)
-            xb = b
-            if b < zero:
-                fb = wp.float64(2.0)
-                xb = zero
-                if ib == 1:
-                    fb = wp.float64(-1.0)
-                    xb = -b
-            elif ib == 1:
-                fb = zero
+            tb = bound_term(b, ib)
             for ic in range(2):
-                fc = wp.float64(1.0)
-                xc = c
-                if c < zero:
-                    fc = wp.float64(2.0)
-                    xc = zero
-                    if ic == 1:
-                        fc = wp.float64(-1.0)
-                        xc = -c
-                elif ic == 1:
-                    fc = zero
-                f = fa * fb * fc
-                if f != zero:
-                    total += f * octant_volume(xa, xb, xc, r)
+                tc = bound_term(c, ic)
+                f = ta[0] * tb[0] * tc[0]
+                if f != wp.float64(0.0):
+                    total += f * octant_volume(ta[1], tb[1], tc[1], r)
     return total
 
 
