@@ -1,5 +1,6 @@
-"""A/B of depth-pass variants on the GPU (an experiment, not the library). Each variant must reproduce the
-library's keys bitwise; times are (seed + depth) - seed, CUDA graph replays, medians.
+"""A/B of depth-pass variants on the GPU (an experiment, not the library; bench/NOTES.md v4 has the results).
+Each variant must reproduce the library's keys bitwise; times are (seed + depth) - seed, CUDA graph replays,
+medians.
 
     python bench/experiments/depth_variants.py 100 200
 """
@@ -32,33 +33,6 @@ def row_live(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, bound: wp.ui
         m = wp.max(wp.max(k0, k1), wp.max(k2, k3))
         if m >= bound:
             live = 1
-        i += 4
-    return live
-
-
-@wp.func
-def row_live_both(keys: wp.array[wp.uint64], row: int, c0: int, c1: int, lo: wp.uint64, hi: wp.uint64) -> int:
-    """Bit 0: a low key of the row at or above lo; bit 1: a high key at or above hi. Both sides of four cells
-    per step: eight independent loads before the first compare."""
-    live = int(0)
-    i = c0
-    while i <= c1:
-        s0 = row + 2 * i
-        s1 = row + 2 * wp.min(i + 1, c1)
-        s2 = row + 2 * wp.min(i + 2, c1)
-        s3 = row + 2 * wp.min(i + 3, c1)
-        l0 = keys[s0]
-        h0 = keys[s0 + 1]
-        l1 = keys[s1]
-        h1 = keys[s1 + 1]
-        l2 = keys[s2]
-        h2 = keys[s2 + 1]
-        l3 = keys[s3]
-        h3 = keys[s3 + 1]
-        if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
-            live = live | 1
-        if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
-            live = live | 2
         i += 4
     return live
 
@@ -100,7 +74,7 @@ def axis_pass_both(
             continue
         row = 2 * (base + j * nu)
         reach = lamp_reach(rem, 0.0, criterion)
-        live = row_live_both(keys, row, cols[0], cols[1], pack_key(pd - reach, 0), pack_key(-(pd + reach), 0))
+        live = KL.row_live(keys, row, cols[0], cols[1], pack_key(pd - reach, 0), pack_key(-(pd + reach), 0))
         if live == 0:
             continue
         for i in range(cols[0], cols[1] + 1):
@@ -112,32 +86,6 @@ def axis_pass_both(
                     KL.offer(keys, slot, pack_key(pd - s, pid))
                 if (live & 2) != 0:
                     KL.offer(keys, slot + 1, pack_key(-(pd + s), pid))
-
-
-@wp.kernel(enable_backward=False)
-def depth_both(
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    active: wp.array[wp.int32],
-    origin: wp.vec3,
-    corner_u: wp.vec3,
-    corner_v: wp.vec3,
-    h_u: wp.vec3,
-    h_v: wp.vec3,
-    n_u: wp.vec3i,
-    n_v: wp.vec3i,
-    offset: wp.vec3i,
-    criterion: int,
-    lamp_mask: int,
-    keys: wp.array[wp.uint64],
-    diag: wp.array[wp.int32],
-):
-    pid = wp.tid()
-    q = KL.particle_frame(pid, positions.shape[0], positions, radii, active, origin)
-    if q[3] == 0.0:
-        return
-    for a in range(3):
-        axis_pass_both(a, pid, q, keys, corner_u, corner_v, h_u, h_v, n_u, n_v, offset, criterion)
 
 
 @wp.kernel(enable_backward=False)
@@ -316,13 +264,15 @@ def main():
 
         t_seed = timed(lambda: run(None, 0, seed_only=True))
         # Cold variants: every key starts empty, so the atomics are all there.
+        # A is the library since v4 (chunks of four cells, both lamps, 128-thread blocks); B reads one lamp's
+        # chunk at a time; C and E give each (sphere, axis) its own thread. v2's unchunked kernel is gone from
+        # the library: its figures stay in bench/NOTES.md.
         variants = (
-            ("A library", KL.lamp_depth, n, 256),
+            ("A library", KL.lamp_depth, n, KL.DEPTH_BLOCK_DIM),
+            ("A bd256", KL.lamp_depth, n, 256),
             ("B chunked", depth_chunked, n, 256),
             ("B chunked128", depth_chunked, n, 128),
             ("C bd128", depth_per_axis, 3 * n, 128),
-            ("D both", depth_both, n, 256),
-            ("D both128", depth_both, n, 128),
             ("E both/axis", depth_both_per_axis, 3 * n, 256),
             ("E both/axis128", depth_both_per_axis, 3 * n, 128),
         )
