@@ -28,7 +28,7 @@ def main():
     ratios = [float(k) for k in args.ratios.split(",")]
     fig = plt.figure(figsize=(4 * len(ratios), 4.4))
     for p, k in enumerate(ratios):
-        lamp = wl.lamp_solve(scene.centers, scene.radii, cells_per_diameter=k, device=args.device)
+        lamp = wl.lamp_update(scene.centers, scene.radii, cells_per_diameter=k, device=args.device)
         d = lamp.diagnostics()
         ax = fig.add_subplot(1, len(ratios), p + 1, projection="3d")
         for a, color in enumerate(("red", "green", "blue")):

@@ -197,7 +197,7 @@ class SphereTest:
         self.center = wp.vec3d(*s.center)
         self.pos32 = wp.zeros(self.n, dtype=wp.vec3, device=d)
         self.lamp_force = wp.zeros(self.n, dtype=wp.vec3, device=d)
-        grid = wl.LampGrid.enclosing(s.centers - s.center, s.radii, cells_per_diameter)
+        grid = wl.LampGrid.enclosing(s.centers - s.center, s.radii, cells_per_diameter=cells_per_diameter)
         self.lamp = wl.ShiningLamp(grid, device=d)
         self.lamp.reserve(self.n)
         self.cycle = 0
@@ -233,12 +233,12 @@ class SphereTest:
 
     def time_cycle(self, repeats: int = 20) -> dict:
         """Seconds per cycle from graph replays (CUDA), with and without the lamp."""
-        from warp_lamp.bench import _median_gpu_time
+        from warp_lamp.timing import time_median_events
 
         out = {}
         for name, with_lamp in (("cycle_s", True), ("cycle_without_lamp_s", False)):
             graph = self.capture(with_lamp=with_lamp)
-            out[name] = _median_gpu_time(lambda g=graph: wp.capture_launch(g), self.device, repeats) / 2
+            out[name] = time_median_events(lambda g=graph: wp.capture_launch(g), self.device, repeats=repeats) / 2
         out["lamp_share"] = 1.0 - out["cycle_without_lamp_s"] / out["cycle_s"]
         return out
 

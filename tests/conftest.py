@@ -1,11 +1,9 @@
 import numpy as np
 import pytest
 import warp as wp
+from helpers import CUDA_DEVICES, DEVICES
 
 wp.config.log_level = wp.LOG_WARNING
-wp.init()
-
-DEVICES = ["cpu"] + [d.alias for d in wp.get_cuda_devices()]
 
 
 @pytest.fixture(params=DEVICES)
@@ -14,12 +12,14 @@ def device(request):
     return request.param
 
 
+@pytest.fixture(params=CUDA_DEVICES or [None])
+def cuda_device(request):
+    """Each CUDA device present; the test is skipped where there is none."""
+    if request.param is None:
+        pytest.skip("needs a CUDA device")
+    return request.param
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
-
-
-def polydisperse_scene(rng, n=150, extent=5.0, rmin=0.2, rmax=0.6):
-    centers = rng.uniform(0.0, extent, (n, 3))
-    radii = rng.uniform(rmin, rmax, n)
-    return centers, radii

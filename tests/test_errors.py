@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 import warp as wp
-from conftest import DEVICES
+from helpers import DEVICES
 
 import warp_lamp as wl
 

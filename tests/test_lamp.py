@@ -5,13 +5,13 @@ import itertools
 import numpy as np
 import pytest
 import warp as wp
-from conftest import DEVICES, polydisperse_scene
+from helpers import DEVICES, device_arrays, polydisperse_scene
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import warp_lamp as wl
-from warp_lamp.bench import lone_sphere_error
-from warp_lamp.lamp import lamp_solve, pressure_area
+from warp_lamp.lamp import lamp_update, pressure_area
+from warp_lamp.measures import lone_sphere_error
 from warp_lamp.reference import lamp_reference
 
 P = 1.0e7
@@ -38,7 +38,7 @@ def test_owners_match_reference_on_random_polydisperse_scenes(device, rng, crite
     """Every cell's owner equals the float64 reference's, except within float32 rounding of a tie."""
     for cells_per_diameter in (2, 5.3):
         centers, radii = polydisperse_scene(rng)
-        lamp = lamp_solve(centers, radii, cells_per_diameter=cells_per_diameter, criterion=criterion, device=device)
+        lamp = lamp_update(centers, radii, cells_per_diameter=cells_per_diameter, criterion=criterion, device=device)
         assert_matches_reference(lamp, centers, radii, criterion=criterion)
 
 
@@ -51,7 +51,7 @@ def test_memo_form_grids_with_own_corners_and_cells_match_reference(device, rng)
         counts=[[23, 31], [40, 17], [29, 29]],
     )
     for criterion in (1, 0):
-        lamp = lamp_solve(centers, radii, grid=grid, criterion=criterion, device=device)
+        lamp = lamp_update(centers, radii, grid=grid, criterion=criterion, device=device)
         assert_matches_reference(lamp, centers, radii, criterion=criterion)
 
 
@@ -75,7 +75,7 @@ def test_owners_match_reference_property(dev, n, seed, ratio, cells_per_diameter
         centers = np.round(centers * 4) / 4
         radii = np.round(radii * 8 + 1) / 8
     active = rng.random(n) > 0.2
-    lamp = lamp_solve(
+    lamp = lamp_update(
         centers,
         radii,
         cells_per_diameter=cells_per_diameter,
@@ -108,22 +108,20 @@ def test_lamp_subset_balances_only_complete_pairs(device, rng):
     total = f.sum(axis=0)
     assert total[0] == 0 and total[1] == 0 and total[2] < 0
     assert np.all(f[:, 2] <= 0)
-    lamp = lamp_solve(centers, radii, lamps=lamps, device=device)
+    lamp = lamp_update(centers, radii, lamps=lamps, device=device)
     assert lamp.diagnostics().lit["-z"] == 0
 
 
-@pytest.mark.skipif(len(DEVICES) < 2, reason="needs a CUDA device")
 @pytest.mark.parametrize("criterion", [1, 0])
-def test_cpu_and_cuda_bitwise_equal(rng, criterion):
+def test_cpu_and_cuda_bitwise_equal(cuda_device, rng, criterion):
     """Owners, counts and forces on CUDA are bitwise those of the CPU (fuse_fp off in the lamp module)."""
     centers, radii = polydisperse_scene(rng, n=3000, extent=12.0, rmin=0.1, rmax=0.9)
-    cpu = lamp_solve(centers, radii, cells_per_diameter=8, criterion=criterion, device="cpu").diagnostics()
-    for dev in DEVICES[1:]:
-        gpu = lamp_solve(centers, radii, cells_per_diameter=8, criterion=criterion, device=dev).diagnostics()
-        for name in wl.LAMPS:
-            np.testing.assert_array_equal(cpu.owners[name], gpu.owners[name])
-            assert cpu.depths[name].tobytes() == gpu.depths[name].tobytes()
-        np.testing.assert_array_equal(cpu.counts, gpu.counts)
+    cpu = lamp_update(centers, radii, cells_per_diameter=8, criterion=criterion, device="cpu").diagnostics()
+    gpu = lamp_update(centers, radii, cells_per_diameter=8, criterion=criterion, device=cuda_device).diagnostics()
+    for name in wl.LAMPS:
+        np.testing.assert_array_equal(cpu.owners[name], gpu.owners[name])
+        assert cpu.depths[name].tobytes() == gpu.depths[name].tobytes()
+    np.testing.assert_array_equal(cpu.counts, gpu.counts)
 
 
 # --- hard cases -------------------------------------------------------------------------------------------
@@ -134,7 +132,7 @@ def test_coincident_spheres_tie_to_lowest_index_on_both_sides(device):
     centers = np.array([[0.0, 0.0, 0.0], [3.0, 3.0, 3.0], [0.0, 0.0, 0.0]])
     radii = np.array([1.0, 0.5, 1.0])
     for criterion in (1, 0):
-        d = lamp_solve(centers, radii, cells_per_diameter=6, criterion=criterion, device=device).diagnostics()
+        d = lamp_update(centers, radii, cells_per_diameter=6, criterion=criterion, device=device).diagnostics()
         for name in wl.LAMPS:
             assert 2 not in d.owners[name]
             assert 0 in d.owners[name]
@@ -147,7 +145,7 @@ def test_touching_lattice_ties_go_to_lowest_index(device):
     centers = np.array([[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     radii = np.full(3, 0.5)
     grid = wl.LampGrid([-0.75, -0.75, -0.75], [2.75, 0.75, 0.75], 0.5)
-    d = lamp_solve(centers, radii, grid=grid, criterion=1, device=device).diagnostics()
+    d = lamp_update(centers, radii, grid=grid, criterion=1, device=device).diagnostics()
     zs, xs = grid.cell_centers(1)
     iz = int(np.argmin(np.abs(zs)))
     for name in ("-y", "+y"):
@@ -166,10 +164,10 @@ def test_spheres_on_cell_centres_and_edges_light_exact_cell_sets(device, axis):
     h = 0.25
     grid = wl.LampGrid([-2.0, -2.0, -2.0], [2.0, 2.0, 2.0], h)
     on_centre = np.array([[h / 2, h / 2, h / 2]])
-    lit = lamp_solve(on_centre, [h], grid=grid, criterion=1, device=device).diagnostics().lit
+    lit = lamp_update(on_centre, [h], grid=grid, criterion=1, device=device).diagnostics().lit
     assert lit[wl.LAMPS[2 * axis]] == 5 and lit[wl.LAMPS[2 * axis + 1]] == 5
     on_corner = np.array([[0.0, 0.0, 0.0]])
-    lit = lamp_solve(on_corner, [h], grid=grid, criterion=0, device=device).diagnostics().lit
+    lit = lamp_update(on_corner, [h], grid=grid, criterion=0, device=device).diagnostics().lit
     assert lit[wl.LAMPS[2 * axis]] == 12 and lit[wl.LAMPS[2 * axis + 1]] == 12
 
 
@@ -194,7 +192,7 @@ def test_radius_ratio_100(device, rng):
     radii = np.concatenate([[1.0], np.full(200, 0.01)])
     grid = wl.LampGrid([-1.4] * 3, [1.4] * 3, 0.02)
     for criterion in (1, 0):
-        lamp = lamp_solve(centers, radii, grid=grid, criterion=criterion, device=device)
+        lamp = lamp_update(centers, radii, grid=grid, criterion=criterion, device=device)
         ref = assert_matches_reference(lamp, centers, radii, criterion=criterion)
         assert (ref.owners["-x"] == 0).sum() > 1000 and ((ref.owners["-x"] > 0).sum() > 10)
 
@@ -203,7 +201,7 @@ def test_radius_ratio_100(device, rng):
 def test_sphere_larger_than_grid_lights_every_cell(device, criterion):
     """A sphere enclosing the whole grid owns every cell of every lamp, is counted outside, and balances."""
     grid = wl.LampGrid([-1.0] * 3, [1.0] * 3, 0.25)
-    lamp = lamp_solve([[0.1, -0.2, 0.3]], [10.0], grid=grid, criterion=criterion, device=device)
+    lamp = lamp_update([[0.1, -0.2, 0.3]], [10.0], grid=grid, criterion=criterion, device=device)
     d = lamp.diagnostics()
     assert all(d.lit[name] == 64 for name in wl.LAMPS)
     assert d.outside == 1 and d.invalid == 0
@@ -214,7 +212,7 @@ def test_sphere_larger_than_grid_lights_every_cell(device, criterion):
 def test_single_sphere_lit_equally_from_both_sides(device, criterion):
     """A lone sphere: each lamp pair lights the same cells, so its net force is exactly zero."""
     r = 0.37
-    lamp = lamp_solve([[0.013, -0.021, 0.007]], [r], cells_per_diameter=8, criterion=criterion, device=device)
+    lamp = lamp_update([[0.013, -0.021, 0.007]], [r], cells_per_diameter=8, criterion=criterion, device=device)
     d = lamp.diagnostics()
     for a in range(3):
         assert d.lit[wl.LAMPS[2 * a]] == d.lit[wl.LAMPS[2 * a + 1]] > 0
@@ -227,7 +225,7 @@ def test_particles_outside_the_grid_are_counted_and_still_balance(device, rng):
     centers, radii = polydisperse_scene(rng, n=100, extent=4.0)
     grid = wl.LampGrid([1.0] * 3, [3.0] * 3, 0.1)  # cuts through the body
     inside = np.all((centers - radii[:, None] >= 1.0) & (centers + radii[:, None] <= 3.0), axis=1)
-    lamp = lamp_solve(centers, radii, grid=grid, device=device)
+    lamp = lamp_update(centers, radii, grid=grid, device=device)
     d = lamp.diagnostics()
     assert d.outside == int((~inside).sum())
     np.testing.assert_array_equal(d.counts.sum(axis=0), [0, 0, 0])
@@ -261,7 +259,7 @@ def test_row_of_touching_spheres_memo_figure_4(device):
     """A row along x: +-y and +-z light every sphere over its own disk; only the end spheres take x loads."""
     n, r = 8, 0.5
     centers = np.column_stack([np.arange(n, dtype=float), np.zeros(n), np.zeros(n)])
-    lamp = lamp_solve(centers, np.full(n, r), cells_per_diameter=16, criterion=1, device=device)
+    lamp = lamp_update(centers, np.full(n, r), cells_per_diameter=16, criterion=1, device=device)
     d = lamp.diagnostics()
     f = d.counts * pressure_area(P, lamp.grid)
     assert d.counts[0, 0] > 0 and d.counts[-1, 0] < 0 and not d.counts[1:-1, 0].any()
@@ -276,18 +274,13 @@ def test_row_of_touching_spheres_memo_figure_4(device):
 # --- simulator API ----------------------------------------------------------------------------------------
 
 
-def device_scene(centers, radii, device):
-    pos = wp.array(centers.astype(np.float32), dtype=wp.vec3, device=device)
-    return pos, wp.array(radii.astype(np.float32), dtype=wp.float32, device=device)
-
-
 def test_shining_lamp_adds_lamp_forces_into_simulator_array(device, rng):
     """apply() adds float32(lamp_forces) to an existing force array; a device pressure array gives the same."""
     centers, radii = polydisperse_scene(rng)
     centers = centers.astype(np.float32).astype(np.float64)
     grid = wl.LampGrid([-1.0] * 3, [6.0] * 3, 0.1)  # float32-exact origin
     expected = wl.lamp_forces(centers, radii, (P, 2 * P, 3 * P), grid=grid, device=device)
-    pos, rad = device_scene(centers, radii, device)
+    pos, rad = device_arrays(centers, radii, device)
     lamp = wl.ShiningLamp(grid, device=device)
     base = rng.normal(size=(len(radii), 3)).astype(np.float32)
     forces = wp.array(base, dtype=wp.vec3, device=device)
@@ -337,7 +330,7 @@ def test_invalid_particles_are_skipped_and_counted_on_device(device, rng):
 def test_diagnostics_resultants(device, rng):
     """Resultant force is exactly zero; the moment equals the sum of r x F about the chosen point."""
     centers, radii = polydisperse_scene(rng)
-    lamp = lamp_solve(centers, radii, device=device)
+    lamp = lamp_update(centers, radii, device=device)
     d = lamp.diagnostics(centers, P, moment_origin=np.zeros(3))
     f = wl.lamp_forces(centers, radii, P, device=device)
     np.testing.assert_array_equal(d.force, 0.0)
@@ -346,14 +339,12 @@ def test_diagnostics_resultants(device, rng):
     np.testing.assert_array_equal(np.flatnonzero(d.surface), np.unique(owners[owners >= 0]))
 
 
-@pytest.mark.parametrize("dev", [d for d in DEVICES if d != "cpu"] or ["cpu"])
-def test_apply_is_graph_capturable(dev, rng):
+def test_apply_is_graph_capturable(device, rng):
     """apply() recorded in wp.ScopedCapture and replayed equals an eager call, and reads the pressure array."""
-    if not wp.get_device(dev).is_cuda:
-        pytest.skip("CUDA graph capture needs a CUDA device")
+    dev = device
     centers, radii = polydisperse_scene(rng, n=500)
     grid = wl.LampGrid([-1.0] * 3, [6.0] * 3, 0.1)
-    pos, rad = device_scene(centers, radii, dev)
+    pos, rad = device_arrays(centers, radii, dev)
     lamp = wl.ShiningLamp(grid, device=dev)
     pressure = wp.array([P], dtype=wp.float32, device=dev)
     eager = wp.zeros(len(radii), dtype=wp.vec3, device=dev)

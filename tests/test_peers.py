@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 import warp as wp
-from conftest import polydisperse_scene
+from helpers import polydisperse_scene
 
 import warp_lamp as wl
-from warp_lamp.lamp import lamp_solve
+from warp_lamp.lamp import lamp_update
 from warp_lamp.peers import BvhLamp
 from warp_lamp.scenes import scene_lattice_box
 
@@ -22,7 +22,7 @@ def test_bvh_owners_equal_lamp_owners(device, rng, scene):
         centers, radii = polydisperse_scene(rng, n=400, extent=6.0, rmin=0.1, rmax=0.7)
         if scene == "far":
             centers = centers + 5.0e3
-    lamp = lamp_solve(centers, radii, cells_per_diameter=4, criterion=1, device=device)
+    lamp = lamp_update(centers, radii, cells_per_diameter=4, criterion=1, device=device)
     local = (centers - lamp.grid.origin).astype(np.float32)
     peer = BvhLamp(lamp.grid, len(radii), device=device)
     peer.build(wp.array(local, dtype=wp.vec3, device=device), wp.array(radii.astype(np.float32), device=device))

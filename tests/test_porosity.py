@@ -5,9 +5,9 @@ import itertools
 import numpy as np
 import pytest
 
-from warp_lamp.bench_porosity import PAPER_TABLE_1, hexahedron_vertices
+from warp_lamp.peers import overlap_hexahedron
 from warp_lamp.porosity import kozeny_carman, midpoint_choice, porosity
-from warp_lamp.reference import midpoint_sphere_offsets, porosity_reference
+from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets, porosity_reference
 
 
 def oracle_solid(centers, radii, lower, upper, shape):
@@ -26,7 +26,7 @@ def oracle_solid(centers, radii, lower, upper, shape):
     for idx in np.ndindex(*shape):
         lo = lower + np.asarray(idx) * h
         hi = lo + h
-        verts = hexahedron_vertices(lo, hi)
+        verts = overlap_hexahedron(lo, hi)
         hexa = overlap.Hexahedron(verts)
         for c, r in zip(centers, radii, strict=True):
             if np.all(c + r > lo) and np.all(c - r < hi):
@@ -178,7 +178,7 @@ def test_kozeny_carman():
         ({"radii": [0.1, np.inf]}, r"radii: must be finite and > 0; index 1"),
         ({"radii": [0.1, 0.0]}, r"radii: must be finite and > 0; index 1"),
         ({"shape": (2, 0, 2)}, r"shape: every entry must be >= 1; index 1 is 0"),
-        ({"lower": [0, 0, 1]}, r"lower: must be below upper on every axis; axis 2"),
+        ({"lower": [0, 0, 1]}, r"upper: must exceed lower on every axis; axis 2"),
         ({"method": "magic"}, r"method: unknown 'magic'"),
         ({"subdivisions": 0}, r"subdivisions: expected an integer >= 1"),
         ({"subdivisions": 2.5}, r"subdivisions: expected an integer >= 1"),

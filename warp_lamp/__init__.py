@@ -1,7 +1,7 @@
 """warp_lamp: the shining-lamp pressure boundary and sphere-packing porosity, as NVIDIA Warp kernels."""
 
 from warp_lamp.grid import LampGrid
-from warp_lamp.lamp import LAMPS, LampDiagnostics, ShiningLamp, lamp_forces, lamp_solve
+from warp_lamp.lamp import LAMPS, LampDiagnostics, ShiningLamp, lamp_forces, lamp_update
 from warp_lamp.porosity import POROSITY_METHODS, kozeny_carman, porosity
 
 __all__ = [
@@ -12,7 +12,7 @@ __all__ = [
     "ShiningLamp",
     "kozeny_carman",
     "lamp_forces",
-    "lamp_solve",
+    "lamp_update",
     "porosity",
 ]
-__version__ = "0.1.0"
+__version__ = "0.2.0"

@@ -2,71 +2,26 @@
 
 from __future__ import annotations
 
-import datetime
+import importlib.util
 import time
 
 import numpy as np
 import warp as wp
 
-from warp_lamp.bench import _git_commit, _median_time, _Progress
-from warp_lamp.porosity import POROSITY_METHODS, count_bitmap, kozeny_carman, porosity
-from warp_lamp.reference import midpoint_sphere_offsets
+from warp_lamp.peers import overlap_hexahedron
+from warp_lamp.porosity import POROSITY_METHODS, count_bitmap, kozeny_carman, porosity, porosity_mark_union
+from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets
 from warp_lamp.scenes import scene_overlapping_box
+from warp_lamp.timing import Progress, run_header, time_median, time_median_events
 
 __all__ = [
-    "PAPER_TABLE_1",
     "bench_porosity",
     "format_porosity",
-    "hexahedron_vertices",
     "paper_experiment",
     "plot_histograms",
 ]
 
-#: Table 1 of Zhang et al. (2024): sub-cells their Algorithm 1 marks for radius 1 ... 25.
-PAPER_TABLE_1 = [
-    1,
-    35,
-    93,
-    223,
-    529,
-    819,
-    1405,
-    1987,
-    2845,
-    4175,
-    5425,
-    7111,
-    8985,
-    11267,
-    13793,
-    16595,
-    20165,
-    24115,
-    28461,
-    32943,
-    37969,
-    43823,
-    50537,
-    57115,
-    64025,
-]
 SUBDIVISIONS = (2, 4, 8, 16, 32)
-
-
-def hexahedron_vertices(lo, hi) -> np.ndarray:
-    """The 8 corners of the box [lo, hi] in the order `overlap` expects (bottom face, then top, counter-clockwise)."""
-    return np.array(
-        [
-            [lo[0], lo[1], lo[2]],
-            [hi[0], lo[1], lo[2]],
-            [hi[0], hi[1], lo[2]],
-            [lo[0], hi[1], lo[2]],
-            [lo[0], lo[1], hi[2]],
-            [hi[0], lo[1], hi[2]],
-            [hi[0], hi[1], hi[2]],
-            [lo[0], hi[1], hi[2]],
-        ]
-    )
 
 
 def _error_scene(quick: bool):
@@ -92,7 +47,7 @@ def _time_overlap_peer(scene, lower, upper, shape, limit_s: float = 20.0):
         for idx in np.ndindex(*(last - first + 1)):
             lo = lower + (first + idx) * h
             hi = lo + h
-            verts = hexahedron_vertices(lo, hi)
+            verts = overlap_hexahedron(lo, hi)
             overlap.overlap_volume(overlap.Sphere(tuple(c), float(r)), overlap.Hexahedron(verts))
             pairs += 1
         if time.perf_counter() - t0 > limit_s:
@@ -113,9 +68,7 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
     scene, lower, upper, shape = _error_scene(quick)
     subs = (2, 4, 8) if quick else SUBDIVISIONS
     result = {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "warp_version": wp.__version__,
-        "git_commit": _git_commit(),
+        **run_header(devices),
         "quick": quick,
         "scene": {"name": scene.name, "n": scene.n, "shape": list(shape), "size_m": (upper - lower).tolist()},
         "devices": {d.alias: d.name for d in devices},
@@ -123,7 +76,7 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
     }
     args = (scene.centers, scene.radii, lower, upper, shape)
     exact = porosity(*args, method="exact", device=devices[0])
-    bar = _Progress(len(devices) * (3 + 2 * len(subs)), "bench porosity", progress)
+    bar = Progress(len(devices) * (3 + 2 * len(subs)), "bench porosity", enabled=progress)
     for device in devices:
         reps = 3 if not device.is_cuda else 10
         for method in POROSITY_METHODS:
@@ -132,7 +85,7 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
                 if s is not None:
                     kw["subdivisions"] = s
                 p = porosity(*args, **kw)
-                t = _median_time(lambda kw=kw: porosity(*args, **kw), device, reps, warmup=1)
+                t = time_median(lambda kw=kw: porosity(*args, **kw), device, repeats=reps, warmup=1)
                 err = p - exact
                 result["rows"].append(
                     {
@@ -147,12 +100,11 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
                 bar.step(f"{device.alias} {method} {s}")
     bar.close()
     result["peers"] = {"overlap": _time_overlap_peer(scene, lower, upper, shape)}
-    try:
-        import porespy  # noqa: F401
-
-        result["peers"]["porespy"] = "installed, not timed: its spheres_from_coords rounds centres to voxels"
-    except ImportError:
-        result["peers"]["porespy"] = "not installed"
+    result["peers"]["porespy"] = (
+        "installed, not timed: its spheres_from_coords rounds centres to voxels"
+        if importlib.util.find_spec("porespy")
+        else "not installed"
+    )
     if target:
         result["target"] = time_target(devices)
     return result
@@ -179,33 +131,23 @@ def time_target(devices) -> list:
 
 def _time_voxel_device(pos, rad, args, device) -> dict:
     """Voxel's device work alone (clear, mark, count), CUDA events around a captured graph; arrays resident."""
-    from warp_lamp.bench import _median_gpu_time
-    from warp_lamp.kernels import porosity as K
-
     _, _, lower, upper, shape = args
     s = 100
     sub = tuple(x * s for x in shape)
-    words = (sub[0] + 31) // 32
     h = (upper - lower) / np.asarray(shape)
-    bits = wp.zeros(words * sub[1] * sub[2], dtype=wp.uint32, device=device)
+    bits = porosity_mark_union("voxel", pos, rad, h / s, sub, device)
     counts = wp.zeros(shape, dtype=wp.int32, device=device)
 
     def run():
         bits.zero_()
         counts.zero_()
-        wp.launch(
-            K.voxel_mark,
-            dim=pos.shape[0],
-            inputs=[pos, rad, wp.vec3d(*(h / s)), wp.vec3i(*sub), words],
-            outputs=[bits],
-            device=device,
-        )
+        porosity_mark_union("voxel", pos, rad, h / s, sub, device, bits=bits)
         count_bitmap(bits, shape, s, counts)
 
     run()
     with wp.ScopedCapture(device=device) as cap:
         run()
-    total = _median_gpu_time(lambda: wp.capture_launch(cap.graph), device, 10)
+    total = time_median_events(lambda: wp.capture_launch(cap.graph), device, repeats=10)
     return {"device_s": total, "bitmap_bytes": int(bits.shape[0] * 4)}
 
 
@@ -215,8 +157,6 @@ def _time_voxel_device(pos, rad, args, device) -> dict:
 def table_1(samples: int = 64, seed: int = 0) -> list:
     """Sub-cells per sphere of radius 1 ... 25 sub-cells: the paper, our midpoint, our voxel (RMS over random
     sub-cell offsets of the centre), and the true volume."""
-    from warp_lamp.reference import porosity_reference  # noqa: F401
-
     rng = np.random.default_rng(seed)
     rows = []
     for r in range(1, 26):

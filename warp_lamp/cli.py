@@ -17,32 +17,30 @@ def _run(args) -> int:
     wp.init()
     from warp_lamp import LampGrid, ShiningLamp
     from warp_lamp.lamp import pressure_area
+    from warp_lamp.measures import envelope_stress
     from warp_lamp.scenes import scene_sphere_specimen
 
     scene = scene_sphere_specimen()
     device = wp.get_device(args.device)
-    grid = LampGrid.enclosing(scene.centers, scene.radii, args.cells_per_diameter)
+    grid = LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=args.cells_per_diameter)
     lamp = ShiningLamp(grid, criterion=args.criterion, device=device)
     pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
     forces = wp.zeros(scene.n, dtype=wp.vec3, device=device)
-    origin = wp.vec3(0.0, 0.0, 0.0)
-    lamp._update(pos, rad, None, origin)  # first call compiles or loads the kernels
+    lamp.update(pos, rad, in_frame=True)  # first call compiles or loads the kernels
     times = []
     for _ in range(args.repeats):
         wp.synchronize_device(device)
         t0 = time.perf_counter()
-        lamp._update(pos, rad, None, origin)
+        lamp.update(pos, rad, in_frame=True)
         wp.synchronize_device(device)
         times.append(time.perf_counter() - t0)
     lamp.add_forces(forces, args.pressure)
     d = lamp.diagnostics(scene.centers, args.pressure, moment_origin=scene.center)
     f = d.counts * pressure_area(args.pressure, grid)
     mag = np.linalg.norm(f, axis=1)
-    rel = scene.centers - scene.center
-    volume = 4.0 / 3.0 * np.pi * scene.radius**3
-    sigma = np.einsum("ni,nj->ij", rel, f) / volume
     R = scene.radius
+    sigma = envelope_stress(scene.centers, f, scene.center, 4.0 / 3.0 * np.pi * R**3)
     print(f"scene      {scene.name}: {scene.n} spheres, body diameter {2 * R * 1e3:.0f} mm")
     print(f"grid       {grid.counts.tolist()} cells of {grid.cell[0, 0] * 1e3:.3f} mm, criterion {args.criterion}")
     print(f"device     {device} ({device.name})")

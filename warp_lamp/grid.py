@@ -2,57 +2,33 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+import warp as wp
 
-__all__ = ["DEFAULT_MAX_BYTES", "LampGrid"]
+from warp_lamp.kernels.grid import LampGridParams
+from warp_lamp.validate import DEFAULT_MAX_BYTES, check_box, check_budget, check_particles, check_vec3
 
-#: Default budget for the per-cell key arrays of one grid set [bytes].
-DEFAULT_MAX_BYTES = 2 << 30
+__all__ = ["BYTES_PER_CELL", "LampGrid"]
+
 #: Bytes a cell needs on the device: one uint64 key per lamp, two lamps per cell.
 BYTES_PER_CELL = 16
 
 
-def _vec3(name: str, value, *, positive: bool = False) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(3, float(arr))
-    if arr.shape != (3,):
-        raise ValueError(f"{name}: expected a scalar or 3 values, got shape {arr.shape}")
-    bad = ~np.isfinite(arr) | ((arr <= 0) if positive else False)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        need = "finite and > 0" if positive else "finite"
-        raise ValueError(f"{name}: must be {need}; index {k} is {arr[k]!r}")
+def _read_only(arr: np.ndarray) -> np.ndarray:
+    arr = np.array(arr)
+    arr.flags.writeable = False
     return arr
 
 
-@dataclass(frozen=True, eq=False)
 class LampGrid:
     """Three lamp grids, in the memo's general form.
 
     Grid ``a`` looks along global axis ``a`` and spans the transverse axes ``u = (a+1)%3`` and ``v = (a+2)%3``.
-    Its cell ``(i, j)`` is ``[corner[a,0] + i h[a,0], ... + h[a,0]) x [corner[a,1] + j h[a,1], ...)`` in global
-    coordinates. Build it with ``LampGrid(lower, upper, cell_size)``, :meth:`from_grids` (the memo's 18 numbers)
-    or :meth:`enclosing`.
-
-    Attributes:
-        origin: Frame origin [m], shape (3,), float64: ``lower`` in the box form. :func:`lamp_forces` subtracts it
-            in float64 before casting to float32, so precision follows the body, not its distance from zero.
-            :class:`ShiningLamp` takes float32 positions and subtracts ``float32(origin)`` on the device; it
-            agrees bitwise with :func:`lamp_forces` when float32 holds the origin exactly.
-        corner: Lower-left corner of each grid in its (u, v) axes [m], shape (3, 2), float64.
-        cell: Cell size of each grid along (u, v) [m], shape (3, 2), float64.
-        counts: Cells of each grid along (u, v), shape (3, 2), int.
-        max_bytes: Memory budget the grid was checked against [bytes].
+    Its cell ``(i, j)`` is ``[corner[a,0] + i cell[a,0], ... + cell[a,0]) x [corner[a,1] + j cell[a,1], ...)`` in
+    global coordinates. Build it with ``LampGrid(lower, upper, cell_size)``, :meth:`from_grids` (the memo's 18
+    numbers) or :meth:`enclosing`. Its memory (:attr:`nbytes`) is checked against ``max_bytes`` before anything is
+    allocated, and its arrays are read-only, so that the check cannot be bypassed.
     """
-
-    origin: np.ndarray
-    corner: np.ndarray
-    cell: np.ndarray
-    counts: np.ndarray
-    max_bytes: int = DEFAULT_MAX_BYTES
 
     def __init__(self, lower, upper, cell_size, *, max_bytes: int = DEFAULT_MAX_BYTES):
         """Box form: every grid covers the box, cells start at ``lower`` and are exactly ``cell_size`` wide.
@@ -64,12 +40,8 @@ class LampGrid:
             cell_size: Cell edge [m], a scalar or one per global axis.
             max_bytes: Budget for the per-cell arrays [bytes]; a larger grid raises ValueError.
         """
-        lower = _vec3("lower", lower)
-        upper = _vec3("upper", upper)
-        h = _vec3("cell_size", cell_size, positive=True)
-        if np.any(upper <= lower):
-            k = int(np.flatnonzero(upper <= lower)[0])
-            raise ValueError(f"upper: must exceed lower on every axis; axis {k} has {upper[k]!r} <= {lower[k]!r}")
+        lower, upper = check_box(lower, upper)
+        h = check_vec3("cell_size", cell_size, positive=True)
         n = np.maximum(np.ceil((upper - lower) / h), 1.0)
         axes = [((a + 1) % 3, (a + 2) % 3) for a in range(3)]
         corner = np.array([[lower[u], lower[v]] for u, v in axes])
@@ -112,9 +84,9 @@ class LampGrid:
         cls,
         centers,
         radii,
+        *,
         cells_per_diameter: float = 4,
         margin: float | None = None,
-        *,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ) -> LampGrid:
         """A box grid around the particles, cell size = mean diameter / ``cells_per_diameter``.
@@ -127,8 +99,6 @@ class LampGrid:
                 particles can move a little between refits without poking out.
             max_bytes: Budget for the per-cell arrays [bytes].
         """
-        from warp_lamp.validate import check_particles
-
         centers, radii = check_particles(centers, radii)
         if len(radii) == 0:
             raise ValueError("centers: need at least one particle to fit a grid")
@@ -153,17 +123,41 @@ class LampGrid:
         counts = np.asarray(counts, dtype=np.float64)
         cells = int(np.sum(counts[:, 0] * counts[:, 1]))
         need = cells * BYTES_PER_CELL
-        if need > max_bytes or cells >= 2**31 // 2:
-            raise ValueError(
-                f"grid: {cells:,} cells need {need:,} bytes, over the budget of {int(max_bytes):,} bytes "
-                f"(raise max_bytes or use larger cells)"
-            )
-        origin = np.asarray(origin, dtype=np.float64).copy()
-        object.__setattr__(self, "origin", origin)
-        object.__setattr__(self, "corner", np.asarray(corner, dtype=np.float64).copy())
-        object.__setattr__(self, "cell", np.asarray(cell, dtype=np.float64).copy())
-        object.__setattr__(self, "counts", counts.astype(np.int64))
-        object.__setattr__(self, "max_bytes", int(max_bytes))
+        check_budget(
+            need, max_bytes, f"grid: {cells:,} cells need {need:,} bytes", "raise max_bytes or use larger cells"
+        )
+        if cells >= 2**30:
+            raise ValueError(f"grid: {cells:,} cells, over the 2**30 that int32 cell and key indices allow")
+        self._origin = _read_only(np.asarray(origin, dtype=np.float64))
+        self._corner = _read_only(np.asarray(corner, dtype=np.float64))
+        self._cell = _read_only(np.asarray(cell, dtype=np.float64))
+        self._counts = _read_only(counts.astype(np.int64))
+
+    @property
+    def origin(self) -> np.ndarray:
+        """Frame origin [m], shape (3,), float64: ``lower`` in the box form.
+
+        :func:`~warp_lamp.lamp_forces` subtracts it in float64 before casting to float32, so precision follows
+        the body, not its distance from zero. :class:`~warp_lamp.ShiningLamp` takes float32 positions and
+        subtracts ``float32(origin)`` on the device; it agrees bitwise with ``lamp_forces`` when float32 holds the
+        origin exactly.
+        """
+        return self._origin
+
+    @property
+    def corner(self) -> np.ndarray:
+        """Lower-left corner of each grid in its (u, v) axes [m], shape (3, 2), float64."""
+        return self._corner
+
+    @property
+    def cell(self) -> np.ndarray:
+        """Cell size of each grid along (u, v) [m], shape (3, 2), float64."""
+        return self._cell
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Cells of each grid along (u, v), shape (3, 2), int64."""
+        return self._counts
 
     @property
     def n_cells(self) -> int:
@@ -186,18 +180,25 @@ class LampGrid:
         """Cell area of each grid [m^2], shape (3,)."""
         return self.cell[:, 0] * self.cell[:, 1]
 
-    def frame(self) -> dict:
-        """Grid parameters in frame coordinates (minus ``origin``), as the kernels take them."""
+    def params(self, *, in_frame: bool = False) -> LampGridParams:
+        """The grid as the kernels take it, in frame coordinates (global minus :attr:`origin`).
+
+        Args:
+            in_frame: The kernels will receive positions already in frame coordinates (so they subtract nothing);
+                otherwise they subtract ``float32(origin)`` from world positions.
+        """
         local = self.corner - np.array([[self.origin[(a + 1) % 3], self.origin[(a + 2) % 3]] for a in range(3)])
-        return {
-            "corner_u": local[:, 0],
-            "corner_v": local[:, 1],
-            "h_u": self.cell[:, 0],
-            "h_v": self.cell[:, 1],
-            "n_u": self.counts[:, 0],
-            "n_v": self.counts[:, 1],
-            "offset": self.offsets,
-        }
+        p = LampGridParams()
+        p.origin = wp.vec3(0.0, 0.0, 0.0) if in_frame else wp.vec3(*self.origin.astype(np.float32))
+        p.corner_u = wp.vec3(*local[:, 0])
+        p.corner_v = wp.vec3(*local[:, 1])
+        p.h_u = wp.vec3(*self.cell[:, 0])
+        p.h_v = wp.vec3(*self.cell[:, 1])
+        p.n_u = wp.vec3i(*(int(x) for x in self.counts[:, 0]))
+        p.n_v = wp.vec3i(*(int(x) for x in self.counts[:, 1]))
+        p.offset = wp.vec3i(*(int(x) for x in self.offsets))
+        p.n_cells = self.n_cells
+        return p
 
     def cell_centers(self, axis: int) -> tuple[np.ndarray, np.ndarray]:
         """Global coordinates of the cell centres of grid ``axis`` along its u and v axes [m]."""

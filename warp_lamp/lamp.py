@@ -9,27 +9,46 @@ import numpy as np
 import warp as wp
 
 from warp_lamp.grid import LampGrid
-from warp_lamp.kernels import lamp as K
+from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.validate import check_particles, check_pressure
 
-__all__ = ["LAMPS", "LampDiagnostics", "ShiningLamp", "lamp_forces", "lamp_mask", "lamp_solve", "pressure_area"]
+__all__ = [
+    "LAMPS",
+    "LampDiagnostics",
+    "ShiningLamp",
+    "lamp_forces",
+    "lamp_mask",
+    "lamp_names",
+    "lamp_owner_maps",
+    "lamp_update",
+    "pressure_area",
+]
 
 #: Lamp names in bit order: "-x" is the lamp at minus infinity on x, shining toward +x.
 LAMPS = ("-x", "+x", "-y", "+y", "-z", "+z")
 _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
-_N_DIAG = 4
 
 
-def lamp_mask(lamps) -> int:
-    """Bit mask of the lamps that are on: ``"all"``, one name, or any collection of names from :data:`LAMPS`."""
+def lamp_names(lamps) -> tuple[str, ...]:
+    """The lamps that are on, as a tuple of names from :data:`LAMPS`: ``"all"``, one name, or any iterable of names.
+
+    The iterable is read once, here, so that a generator is not consumed by validation and then seen empty.
+    """
     if isinstance(lamps, str):
         lamps = LAMPS if lamps == "all" else (lamps,)
     if not isinstance(lamps, Iterable):
         raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {lamps!r}")
-    mask = 0
-    for name in lamps:
+    names = tuple(lamps)
+    for name in names:
         if name not in LAMPS:
             raise ValueError(f"lamps: unknown lamp {name!r}; expected 'all' or names from {LAMPS}")
+    return names
+
+
+def lamp_mask(lamps) -> int:
+    """Bit mask of the lamps that are on (bit k for ``LAMPS[k]``); ``lamps`` as for :func:`lamp_names`."""
+    mask = 0
+    for name in lamp_names(lamps):
         mask |= 1 << LAMPS.index(name)
     return mask
 
@@ -58,6 +77,28 @@ def _decode_depth(keys: np.ndarray) -> np.ndarray:
     b = (keys >> np.uint64(32)).astype(np.uint32)
     bits = np.where(b & np.uint32(0x80000000), b ^ np.uint32(0x80000000), ~b)
     return bits.view(np.float32).astype(np.float64)
+
+
+def lamp_owner_maps(keys: np.ndarray, grid: LampGrid) -> tuple[dict, dict]:
+    """Decode a lamp key array (two uint64 keys per cell, as ``ShiningLamp.keys``) into per-lamp maps.
+
+    Returns:
+        ``(owners, depths)``: per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v),
+        and the global coordinate along the lamp's axis where its ray meets its owner [m] (NaN where unlit).
+    """
+    owners, depths = {}, {}
+    for a in range(3):
+        nu, nv = (int(x) for x in grid.counts[a])
+        first = int(grid.offsets[a])
+        for side in range(2):
+            name = LAMPS[2 * a + side]
+            k = keys[2 * first + side : 2 * (first + nu * nv) : 2]
+            hit = k != _EMPTY
+            own = np.where(hit, (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
+            dep = _decode_depth(k) * (1.0 if side == 0 else -1.0) + grid.origin[a]
+            owners[name] = own.reshape(nv, nu).T
+            depths[name] = np.where(hit, dep, np.nan).reshape(nv, nu).T
+    return owners, depths
 
 
 @dataclass
@@ -123,24 +164,16 @@ class ShiningLamp:
         self.criterion = _check_criterion(criterion)
         self.lamp_mask = lamp_mask(lamps)
         self.device = wp.get_device(device)
-        f = grid.frame()
-        self._corner_u = wp.vec3(*f["corner_u"])
-        self._corner_v = wp.vec3(*f["corner_v"])
-        self._h_u = wp.vec3(*f["h_u"])
-        self._h_v = wp.vec3(*f["h_v"])
-        self._n_u = wp.vec3i(*(int(x) for x in f["n_u"]))
-        self._n_v = wp.vec3i(*(int(x) for x in f["n_v"]))
-        self._offset = wp.vec3i(*(int(x) for x in f["offset"]))
-        self._origin = wp.vec3(*grid.origin.astype(np.float32))
+        self._params = {False: grid.params(), True: grid.params(in_frame=True)}
         self._area = wp.vec3d(*grid.cell_area)
-        self._n_cells = grid.n_cells
         d = self.device
-        self.keys = wp.full(2 * self._n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
+        self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
         self.n = 0
+        self._inputs = None
 
     def reserve(self, n: int) -> None:
         """Make room for ``n`` particles now, so that a later captured update need not allocate."""
@@ -154,7 +187,7 @@ class ShiningLamp:
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
-        wp.launch(K.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
+        wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         if not isinstance(arr, wp.array):
@@ -170,17 +203,19 @@ class ShiningLamp:
         if not arr.is_contiguous:
             raise ValueError(f"{name}: must be contiguous")
 
-    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None) -> None:
+    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None, *, in_frame=False) -> None:
         """Recompute which particle each cell lights, and each particle's signed cell counts.
 
+        Runs :meth:`launch_seed`, :meth:`launch_depth` and :meth:`launch_scatter` on these inputs.
+
         Args:
-            positions: Particle centres [m], warp array of vec3 (float32), shape (N,), on the lamp's device.
+            positions: Particle centres [m], warp array of vec3 (float32), shape (N,), on the lamp's device: world
+                coordinates, from which the lamp subtracts ``float32(grid.origin)``.
             radii: Particle radii [m], warp array of float32, shape (N,).
             active: Optional warp array of int32, shape (N,): 0 makes a particle invisible (no shadow, no force).
+            in_frame: ``positions`` are already in frame coordinates (world minus ``grid.origin``, computed by the
+                caller, e.g. in float64 before the cast to float32), so the lamp subtracts nothing.
         """
-        self._update(positions, radii, active, self._origin)
-
-    def _update(self, positions, radii, active, origin) -> None:
         self._check_array("positions", positions, wp.vec3)
         n = positions.shape[0]
         self._check_array("radii", radii, wp.float32, n)
@@ -190,37 +225,62 @@ class ShiningLamp:
             self._check_array("active", active, wp.int32, n)
         self.reserve(n)
         self.n = n
+        particles = lamp_kernels.LampParticles()
+        particles.positions = positions
+        particles.radii = radii
+        particles.active = active
+        particles.n = n
+        self._inputs = (self._params[bool(in_frame)], particles)
+        self.launch_seed()
+        self.launch_depth()
+        self.launch_scatter()
+
+    # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
+
+    def launch_seed(self) -> None:
+        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
+        grid, particles = self._inputs
         d = self.device
-        grid_args = [self._corner_u, self._corner_v, self._h_u, self._h_v, self._n_u]
-        wp.launch(K.lamp_clear, dim=max(n, _N_DIAG), inputs=[n], outputs=[self.counts, self.diag], device=d)
         wp.launch(
-            K.lamp_seed,
-            dim=self._n_cells,
-            inputs=[positions, radii, active, n, origin, *grid_args, self._offset, self.criterion],
+            lamp_kernels.lamp_clear,
+            dim=max(self.n, lamp_kernels.N_DIAG),
+            inputs=[self.n],
+            outputs=[self.counts, self.diag],
+            device=d,
+        )
+        wp.launch(
+            lamp_kernels.lamp_seed,
+            dim=self.grid.n_cells,
+            inputs=[grid, particles, self.criterion],
             outputs=[self.keys],
             device=d,
         )
-        if n == 0:
+
+    def launch_depth(self) -> None:
+        """Update step 2: every sphere offers its depth to every cell it covers (one thread per sphere)."""
+        grid, particles = self._inputs
+        if self.n == 0:
             return
         wp.launch(
-            K.lamp_depth,
-            dim=n,
-            inputs=[
-                positions,
-                radii,
-                active,
-                origin,
-                *grid_args,
-                self._n_v,
-                self._offset,
-                self.criterion,
-                self.lamp_mask,
-            ],
+            lamp_kernels.lamp_depth,
+            dim=self.n,
+            inputs=[grid, particles, self.criterion, self.lamp_mask],
             outputs=[self.keys, self.diag],
-            device=d,
-            block_dim=K.DEPTH_BLOCK_DIM,
+            device=self.device,
+            block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
         )
-        wp.launch(K.lamp_scatter, dim=self._n_cells, inputs=[self.keys, self._offset], outputs=[self.counts], device=d)
+
+    def launch_scatter(self) -> None:
+        """Update step 3: each lit cell adds its +1 / -1 to its owners' counts."""
+        if self.n == 0:
+            return
+        wp.launch(
+            lamp_kernels.lamp_scatter,
+            dim=self.grid.n_cells,
+            inputs=[self._inputs[0], self.keys],
+            outputs=[self.counts],
+            device=self.device,
+        )
 
     def add_forces(self, forces: wp.array, pressure) -> None:
         """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.
@@ -242,7 +302,7 @@ class ShiningLamp:
             const = wp.vec3d(*check_pressure(pressure))
         if self.n > 0:
             wp.launch(
-                K.lamp_add_forces,
+                lamp_kernels.lamp_add_forces,
                 dim=self.n,
                 inputs=[self.counts, self._area, const, arr],
                 outputs=[forces],
@@ -266,28 +326,26 @@ class ShiningLamp:
             pressure: Pressure [Pa] (a number or three), for the resultant force and moment.
             moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
         """
-        g = self.grid
-        keys = self.keys.numpy()
         diag = self.diag.numpy()
         counts = self.counts_numpy()
+        owners, depths = lamp_owner_maps(self.keys.numpy(), self.grid)
         surface = np.zeros(self.n, dtype=bool)
-        owners, depths, lit = {}, {}, {}
-        for a in range(3):
-            nu, nv = (int(x) for x in g.counts[a])
-            o = int(g.offsets[a])
-            for side in range(2):
-                name = LAMPS[2 * a + side]
-                k = keys[2 * o + side : 2 * (o + nu * nv) : 2]
-                hit = k != _EMPTY
-                own = np.where(hit, (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
-                dep = _decode_depth(k) * (1.0 if side == 0 else -1.0) + g.origin[a]
-                owners[name] = own.reshape(nv, nu).T
-                depths[name] = np.where(hit, dep, np.nan).reshape(nv, nu).T
-                lit[name] = int(hit.sum())
-                surface[own[hit]] = True
-        out = LampDiagnostics(counts, surface, owners, depths, lit, int(diag[0]), int(diag[1]))
+        lit = {}
+        for name, own in owners.items():
+            hit = own >= 0
+            lit[name] = int(hit.sum())
+            surface[own[hit]] = True
+        out = LampDiagnostics(
+            counts,
+            surface,
+            owners,
+            depths,
+            lit,
+            int(diag[lamp_kernels.DIAG_INVALID]),
+            int(diag[lamp_kernels.DIAG_OUTSIDE]),
+        )
         if pressure is not None:
-            f = counts * pressure_area(pressure, g)
+            f = counts * pressure_area(pressure, self.grid)
             out.force = f.sum(axis=0)
             if positions is not None:
                 x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
@@ -299,7 +357,7 @@ class ShiningLamp:
         return out
 
 
-def lamp_solve(
+def lamp_update(
     centers,
     radii,
     *,
@@ -310,15 +368,25 @@ def lamp_solve(
     active=None,
     device=None,
 ) -> ShiningLamp:
-    """Run one update on host data and return the lamp, for :meth:`ShiningLamp.diagnostics` and counts.
+    """One lamp update on host data; returns the lamp, for its counts and :meth:`ShiningLamp.diagnostics`.
 
-    Arguments as for :func:`lamp_forces`. The positions are taken relative to ``grid.origin`` in float64
-    before the cast to float32; pass ``centers`` to ``diagnostics`` for the moment, and ``grid.origin`` is
-    already accounted for there.
+    The positions are taken relative to ``grid.origin`` in float64 before the cast to float32, so a body far from
+    the origin gets the same result as near it; pass ``centers`` to ``diagnostics`` for the moment.
+
+    Args:
+        centers: Particle centres [m], shape (N, 3).
+        radii: Particle radii [m], shape (N,), or one number for all.
+        grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter`` (a placeholder
+            one-cell grid when there are no particles).
+        cells_per_diameter: Cells per mean particle diameter for the default grid.
+        criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk.
+        lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
+        active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
+        device: Warp device; the current default when None.
     """
     c, r = check_particles(centers, radii)
     criterion = _check_criterion(criterion)
-    lamp_mask(lamps)
+    lamps = lamp_names(lamps)
     n = c.shape[0]
     mask = None
     if active is not None:
@@ -327,33 +395,25 @@ def lamp_solve(
             raise ValueError(f"active: expected shape ({n},), got {mask.shape}")
         mask = (mask != 0).astype(np.int32)
     if grid is None:
-        if n == 0:
-            raise ValueError("centers: no particles to fit a default grid to; pass grid=")
-        grid = LampGrid.enclosing(c, r, cells_per_diameter)
+        if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
+            raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
+        grid = (
+            LampGrid([0.0] * 3, [1.0] * 3, 1.0)
+            if n == 0
+            else LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter)
+        )
     elif not isinstance(grid, LampGrid):
         raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
     device = wp.get_device(device)
     lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device)
-    local = (c - grid.origin).astype(np.float32)
-    pos = wp.array(local, dtype=wp.vec3, device=device)
+    pos = wp.array((c - grid.origin).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
     rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
     act = None if mask is None else wp.array(mask, dtype=wp.int32, device=device)
-    lamp._update(pos, rad, act, wp.vec3(0.0, 0.0, 0.0))
+    lamp.update(pos, rad, act, in_frame=True)
     return lamp
 
 
-def lamp_forces(
-    centers,
-    radii,
-    pressure,
-    *,
-    grid: LampGrid | None = None,
-    cells_per_diameter: float = 4,
-    criterion: int = 1,
-    lamps="all",
-    active=None,
-    device=None,
-) -> np.ndarray:
+def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
     """Shining-lamp forces on a body of spheres under fluid pressure.
 
     Each cell of the three lamp grids shines from both ends of its axis; the first sphere its ray meets takes
@@ -365,27 +425,12 @@ def lamp_forces(
             before the cast to float32, so a body far from the origin gets the same forces as near it.
         radii: Particle radii [m], shape (N,), or one number for all.
         pressure: Fluid pressure [Pa], one number or (Px, Py, Pz) for polyaxial loading.
-        grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter``.
-        cells_per_diameter: Cells per mean particle diameter for the default grid.
-        criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk.
-        lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
-        active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
-        device: Warp device; the current default when None.
+        **options: The keyword arguments of :func:`lamp_update`: ``grid``, ``cells_per_diameter``,
+            ``criterion``, ``lamps``, ``active``, ``device``.
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
     """
     p = check_pressure(pressure)
-    if grid is None and len(check_particles(centers, radii)[1]) == 0:
-        return np.zeros((0, 3))  # no particles, nothing to fit a grid to, no forces
-    lamp = lamp_solve(
-        centers,
-        radii,
-        grid=grid,
-        cells_per_diameter=cells_per_diameter,
-        criterion=criterion,
-        lamps=lamps,
-        active=active,
-        device=device,
-    )
+    lamp = lamp_update(centers, radii, **options)
     return lamp.counts_numpy() * pressure_area(p, lamp.grid)

@@ -6,10 +6,11 @@ import numpy as np
 import warp as wp
 
 from warp_lamp.grid import LampGrid
-from warp_lamp.kernels import lamp as KL
-from warp_lamp.kernels import peers as KP
+from warp_lamp.kernels import lamp as lamp_kernels
+from warp_lamp.kernels import peers as peer_kernels
+from warp_lamp.lamp import lamp_owner_maps
 
-__all__ = ["BvhLamp"]
+__all__ = ["BvhLamp", "overlap_hexahedron"]
 
 
 class BvhLamp:
@@ -23,16 +24,7 @@ class BvhLamp:
         self.grid = grid
         self.device = wp.get_device(device)
         d = self.device
-        f = grid.frame()
-        self._params = [
-            wp.vec3(*f["corner_u"]),
-            wp.vec3(*f["corner_v"]),
-            wp.vec3(*f["h_u"]),
-            wp.vec3(*f["h_v"]),
-            wp.vec3i(*(int(x) for x in f["n_u"])),
-            wp.vec3i(*(int(x) for x in f["offset"])),
-        ]
-        self._offset = self._params[-1]
+        self._params = grid.params(in_frame=True)
         self.n = n
         self.n_cells = grid.n_cells
         self.keys = wp.zeros(2 * self.n_cells, dtype=wp.uint64, device=d)
@@ -41,13 +33,17 @@ class BvhLamp:
         self.uppers = wp.zeros(n, dtype=wp.vec3, device=d)
         self.bvh = None
 
-    def build(self, positions: wp.array, radii: wp.array, origin=(0.0, 0.0, 0.0)) -> None:
-        """Boxes and a fresh BVH: a moving simulation pays this every update too."""
-        self._origin = wp.vec3(*origin)
+    def build(self, positions: wp.array, radii: wp.array) -> None:
+        """Boxes and a fresh BVH: a moving simulation pays this every update too.
+
+        Args:
+            positions: Particle centres in frame coordinates (minus ``grid.origin``) [m], vec3, shape (N,).
+            radii: Particle radii [m], float32, shape (N,).
+        """
         wp.launch(
-            KP.bvh_sphere_bounds,
+            peer_kernels.bvh_sphere_bounds,
             dim=self.n,
-            inputs=[positions, radii, self._origin],
+            inputs=[positions, radii],
             outputs=[self.lowers, self.uppers],
             device=self.device,
         )
@@ -62,39 +58,37 @@ class BvhLamp:
         d = self.device
         self.counts.zero_()
         wp.launch(
-            KP.bvh_cast,
+            peer_kernels.bvh_cast,
             dim=2 * self.n_cells,
-            inputs=[
-                self.bvh.id,
-                self._positions,
-                self._radii,
-                self._origin,
-                *self._params,
-                self._start_lo,
-                self._start_hi,
-            ],
+            inputs=[self._params, self.bvh.id, self._positions, self._radii, self._start_lo, self._start_hi],
             outputs=[self.keys],
             device=d,
         )
         wp.launch(
-            KL.lamp_scatter,
+            lamp_kernels.lamp_scatter,
             dim=self.n_cells,
-            inputs=[self.keys, self._offset],
+            inputs=[self._params, self.keys],
             outputs=[self.counts],
             device=d,
         )
 
     def owners(self) -> dict:
         """Owner of each cell ``[i, j]`` per lamp name (-1 where unlit), as in ``ShiningLamp.diagnostics``."""
-        from warp_lamp.lamp import LAMPS
+        return lamp_owner_maps(self.keys.numpy(), self.grid)[0]
 
-        keys = self.keys.numpy()
-        out = {}
-        for a in range(3):
-            nu, nv = (int(x) for x in self.grid.counts[a])
-            o = int(self.grid.offsets[a])
-            for side in range(2):
-                k = keys[2 * o + side : 2 * (o + nu * nv) : 2]
-                own = np.where(k != np.uint64(0xFFFFFFFFFFFFFFFF), (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
-                out[LAMPS[2 * a + side]] = own.reshape(nv, nu).T
-        return out
+
+def overlap_hexahedron(lo, hi) -> np.ndarray:
+    """The 8 corners of the box [lo, hi] in the order the `overlap` package (Strobl et al.) expects: bottom face,
+    then top, counter-clockwise. For the porosity peer in the benchmark and the oracle in the tests."""
+    return np.array(
+        [
+            [lo[0], lo[1], lo[2]],
+            [hi[0], lo[1], lo[2]],
+            [hi[0], hi[1], lo[2]],
+            [lo[0], hi[1], lo[2]],
+            [lo[0], lo[1], hi[2]],
+            [hi[0], lo[1], hi[2]],
+            [hi[0], hi[1], hi[2]],
+            [lo[0], hi[1], hi[2]],
+        ]
+    )

@@ -5,42 +5,28 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_lamp.kernels import porosity as K
-from warp_lamp.validate import check_particles
+from warp_lamp.kernels import porosity as porosity_kernels
+from warp_lamp.validate import (
+    DEFAULT_MAX_BYTES,
+    check_box,
+    check_budget,
+    check_particles,
+    check_shape,
+    check_subdivisions,
+)
 
-__all__ = ["POROSITY_METHODS", "count_bitmap", "kozeny_carman", "porosity", "porosity_bitmap_bytes"]
+__all__ = [
+    "POROSITY_METHODS",
+    "count_bitmap",
+    "kozeny_carman",
+    "midpoint_choice",
+    "porosity",
+    "porosity_bitmap_bytes",
+    "porosity_mark_union",
+]
 
 #: Methods of :func:`porosity`: sum kinds count overlaps twice and may go below zero; union kinds do not.
 POROSITY_METHODS = {"centroid": "sum", "polyhedron": "sum", "exact": "sum", "voxel": "union", "midpoint": "union"}
-#: Default budget for the sub-cell bitmap of the union methods [bytes].
-DEFAULT_BITMAP_BYTES = 2 << 30
-
-
-def _check_box(lower, upper, shape):
-    lo = np.asarray(lower, dtype=np.float64).reshape(-1)
-    hi = np.asarray(upper, dtype=np.float64).reshape(-1)
-    for name, v in (("lower", lo), ("upper", hi)):
-        if v.shape != (3,):
-            raise ValueError(f"{name}: expected 3 values, got shape {v.shape}")
-        if not np.isfinite(v).all():
-            k = int(np.flatnonzero(~np.isfinite(v))[0])
-            raise ValueError(f"{name}: must be finite; index {k} is {v[k]!r}")
-    if np.any(lo >= hi):
-        k = int(np.flatnonzero(lo >= hi)[0])
-        raise ValueError(f"lower: must be below upper on every axis; axis {k} has {lo[k]!r} >= {hi[k]!r}")
-    sh = np.asarray(shape).reshape(-1)
-    if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
-        raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {shape!r}")
-    if np.any(sh < 1):
-        k = int(np.flatnonzero(sh < 1)[0])
-        raise ValueError(f"shape: every entry must be >= 1; index {k} is {int(sh[k])}")
-    return lo, hi, tuple(int(x) for x in sh)
-
-
-def _check_subdivisions(subdivisions) -> int:
-    if isinstance(subdivisions, bool) or not isinstance(subdivisions, (int, np.integer)) or subdivisions < 1:
-        raise ValueError(f"subdivisions: expected an integer >= 1, got {subdivisions!r}")
-    return int(subdivisions)
 
 
 def porosity_bitmap_bytes(shape, subdivisions: int) -> int:
@@ -81,7 +67,7 @@ def porosity(
     subdivisions: int = 8,
     device=None,
     midpoint_algorithm: int | None = None,
-    max_bytes: int = DEFAULT_BITMAP_BYTES,
+    max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> np.ndarray:
     """Porosity (1 - solid volume / cell volume) of each cell of a box grid around a sphere packing.
 
@@ -125,88 +111,124 @@ def porosity(
         Porosity, shape ``shape``, float64, indexed [i, j, k] along x, y, z.
     """
     c, r = check_particles(centers, radii)
-    lo, hi, shape = _check_box(lower, upper, shape)
+    lo, hi = check_box(lower, upper)
+    shape = check_shape(shape)
     if method not in POROSITY_METHODS:
         raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
-    s = _check_subdivisions(subdivisions)
+    s = check_subdivisions(subdivisions)
     if midpoint_algorithm not in (None, 1, 2):
         raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
     device = wp.get_device(device)
     h = (hi - lo) / np.asarray(shape)
-    cell_volume = float(np.prod(h))
     local = c - lo  # float64, so that a box far from the origin loses nothing
-    n = len(r)
     if POROSITY_METHODS[method] == "sum":
-        solid = wp.zeros(shape, dtype=wp.float64, device=device)
-        if n:
-            kernel = {"centroid": K.porosity_centroid, "polyhedron": K.porosity_polyhedron, "exact": K.porosity_exact}
-            wp.launch(
-                kernel[method],
-                dim=n,
-                inputs=[
-                    wp.array(local, dtype=wp.vec3d, device=device),
-                    wp.array(r, dtype=wp.float64, device=device),
-                    wp.vec3d(*h),
-                    wp.vec3i(*shape),
-                ],
-                outputs=[solid],
-                device=device,
-            )
-        return 1.0 - solid.numpy() / cell_volume
+        solid = _porosity_sum(method, local, r, h, shape, device)
+        return 1.0 - solid / float(np.prod(h))
     need = porosity_bitmap_bytes(shape, s)
     sub = tuple(x * s for x in shape)
-    if need > max_bytes:
-        raise ValueError(
-            f"subdivisions: {s} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and a {need:,}-byte bitmap, over the "
-            f"budget of {int(max_bytes):,} bytes (raise max_bytes or lower subdivisions)"
-        )
-    words = (sub[0] + 31) // 32
-    bits = wp.zeros(words * sub[1] * sub[2], dtype=wp.uint32, device=device)
-    hs = h / s
-    if n and method == "voxel":
-        wp.launch(
-            K.voxel_mark,
-            dim=n,
-            inputs=[
-                wp.array(local, dtype=wp.vec3d, device=device),
-                wp.array(r, dtype=wp.float64, device=device),
-                wp.vec3d(*hs),
-                wp.vec3i(*sub),
-                words,
-            ],
-            outputs=[bits],
-            device=device,
-        )
-    elif n:
-        mc, mr = _midpoint_spheres(local, r, hs)
-        algorithm = midpoint_algorithm or midpoint_choice(mr, sub[0] * sub[1] * sub[2])
-        cen = wp.array(mc, dtype=wp.vec3i, device=device)
-        rad = wp.array(mr, dtype=wp.int32, device=device)
-        if algorithm == 1:
-            wp.launch(K.midpoint_mark, dim=n, inputs=[cen, rad, wp.vec3i(*sub), words], outputs=[bits], device=device)
-        else:
-            rmax = int(mr.max())
-            grid = wp.HashGrid(*(max(1, min(128, x // max(1, 2 * rmax))) for x in sub), device=device)
-            grid.build(wp.array(mc.astype(np.float32), dtype=wp.vec3, device=device), float(rmax))
-            # Every centre within the cube |d| <= R is within R sqrt(3) of the sub-cell.
-            search = float(rmax) * 1.7321 + 1.0
-            wp.launch(
-                K.midpoint_grid_mark,
-                dim=bits.shape[0],
-                inputs=[grid.id, cen, rad, wp.vec3i(*sub), words, search],
-                outputs=[bits],
-                device=device,
-            )
+    check_budget(
+        need,
+        max_bytes,
+        f"subdivisions: {s} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and a {need:,}-byte bitmap",
+        "raise max_bytes or lower subdivisions",
+    )
+    bits = porosity_mark_union(
+        method, local, r, h / s, tuple(x * s for x in shape), device, algorithm=midpoint_algorithm
+    )
     counts = wp.zeros(shape, dtype=wp.int32, device=device)
     count_bitmap(bits, shape, s, counts)
     return 1.0 - counts.numpy().astype(np.float64) / float(s**3)
+
+
+def _porosity_sum(method, local, radii, h, shape, device) -> np.ndarray:
+    """Solid volume per cell [m^3] by one of the sum methods, shape ``shape``."""
+    solid = wp.zeros(shape, dtype=wp.float64, device=device)
+    if len(radii):
+        inputs = [
+            wp.array(local, dtype=wp.vec3d, device=device),
+            wp.array(radii, dtype=wp.float64, device=device),
+            wp.vec3d(*h),
+            wp.vec3i(*shape),
+        ]
+        if method == "centroid":
+            kernel = porosity_kernels.porosity_centroid
+        else:
+            kernel = porosity_kernels.porosity_box
+            inputs.append(porosity_kernels.BOX_EXACT if method == "exact" else porosity_kernels.BOX_CUBE)
+        wp.launch(kernel, dim=len(radii), inputs=inputs, outputs=[solid], device=device)
+    return solid.numpy()
+
+
+def porosity_mark_union(method, local, radii, hs, sub, device, *, algorithm=None, bits=None) -> wp.array:
+    """The union methods' first step: the bitmap of solid sub-cells (one bit per sub-cell, rows padded to 32).
+
+    Args:
+        method: ``"voxel"`` or ``"midpoint"``.
+        local: Sphere centres relative to the box's lower corner [m], shape (N, 3), float64 (numpy), or a warp
+            ``vec3d`` array on ``device``.
+        radii: Sphere radii [m], shape (N,), float64 (numpy or warp).
+        hs: Sub-cell edge per axis [m], 3 values.
+        sub: Sub-cells per axis, 3 integers.
+        device: Warp device.
+        algorithm: Midpoint only: 1 or 2, or None for the paper's discriminant.
+        bits: A zeroed bitmap to mark into (``porosity_bitmap_bytes`` / 4 words), or None to allocate one.
+
+    Returns:
+        The bitmap, uint32 words: word w of row (j, k) holds sub-cells 32 w ... 32 w + 31 along x.
+    """
+    device = wp.get_device(device)
+    words = (sub[0] + 31) // 32
+    if bits is None:
+        bits = wp.zeros(words * sub[1] * sub[2], dtype=wp.uint32, device=device)
+    n = len(radii)
+    if n == 0:
+        return bits
+    if method == "voxel":
+        cen = local if isinstance(local, wp.array) else wp.array(local, dtype=wp.vec3d, device=device)
+        rad = radii if isinstance(radii, wp.array) else wp.array(radii, dtype=wp.float64, device=device)
+        wp.launch(
+            porosity_kernels.voxel_mark,
+            dim=n,
+            inputs=[cen, rad, wp.vec3d(*hs), wp.vec3i(*sub), words],
+            outputs=[bits],
+            device=device,
+        )
+        return bits
+    local = local.numpy() if isinstance(local, wp.array) else local
+    radii = radii.numpy() if isinstance(radii, wp.array) else radii
+    mc, mr = _midpoint_spheres(local, radii, np.asarray(hs))
+    algorithm = algorithm or midpoint_choice(mr, sub[0] * sub[1] * sub[2])
+    cen = wp.array(mc, dtype=wp.vec3i, device=device)
+    rad = wp.array(mr, dtype=wp.int32, device=device)
+    if algorithm == 1:
+        wp.launch(
+            porosity_kernels.midpoint_mark,
+            dim=n,
+            inputs=[cen, rad, wp.vec3i(*sub), words],
+            outputs=[bits],
+            device=device,
+        )
+        return bits
+    rmax = int(mr.max())
+    grid = wp.HashGrid(*(max(1, min(128, x // max(1, 2 * rmax))) for x in sub), device=device)
+    grid.build(wp.array(mc.astype(np.float32), dtype=wp.vec3, device=device), float(rmax))
+    # Every centre within the cube |d| <= R is within R sqrt(3) of the sub-cell.
+    search = float(rmax) * 1.7321 + 1.0
+    wp.launch(
+        porosity_kernels.midpoint_grid_mark,
+        dim=bits.shape[0],
+        inputs=[grid.id, cen, rad, wp.vec3i(*sub), words, search],
+        outputs=[bits],
+        device=device,
+    )
+    return bits
 
 
 def count_bitmap(bits: wp.array, shape, s: int, counts: wp.array) -> None:
     """Add each cell's solid sub-cells (the set bits of the bitmap of ``shape`` cells of s^3 sub-cells) to counts."""
     sub = tuple(int(x) * s for x in shape)
     wp.launch(
-        K.bitmap_count,
+        porosity_kernels.bitmap_count,
         dim=(shape[0], shape[1], sub[2]),
         inputs=[bits, wp.vec3i(*sub), (sub[0] + 31) // 32, wp.vec3i(s, s, s)],
         outputs=[counts],

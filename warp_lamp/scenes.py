@@ -108,6 +108,23 @@ def _cache_dir() -> Path:
     return Path(base)
 
 
+def _cached_packing(kind: str, params: dict, build, *, cache: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(centres, radii) of a packing: read from the disk cache, keyed by ``kind`` and ``params``, or made by
+    ``build()`` and written there atomically (so that concurrent processes never read half a file)."""
+    key = hashlib.sha1(json.dumps({**params, "v": _PACKING_VERSION}, sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_dir() / f"{kind}-{key}.npz"
+    if cache and path.exists():
+        data = np.load(path)
+        return data["centers"], data["radii"]
+    centers, radii = build()
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, centers=centers, radii=radii)
+        os.replace(tmp, path)
+    return centers, radii
+
+
 def scene_sphere_specimen(
     diameter: float = 0.1,
     particle_diameter: float = 0.005,
@@ -137,19 +154,13 @@ def scene_sphere_specimen(
         device: Warp device for the relaxation (CPU takes a few seconds).
         cache: Read and write the on-disk cache.
     """
-    params = dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed, v=_PACKING_VERSION)
-    key = hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_dir() / f"specimen-{key}.npz"
     R = diameter / 2.0
-    if cache and path.exists():
-        data = np.load(path)
-        return Scene("sphere specimen", data["centers"], data["radii"], np.zeros(3), R)
-    centers, radii = _relax_packing(R, particle_diameter / 2.0, ratio, porosity, seed, device)
-    if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, centers=centers, radii=radii)
-        os.replace(tmp, path)
+    centers, radii = _cached_packing(
+        "specimen",
+        dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed),
+        lambda: _relax_packing(R, particle_diameter / 2.0, ratio, porosity, seed, device),
+        cache=cache,
+    )
     return Scene("sphere specimen", centers, radii, np.zeros(3), R)
 
 
@@ -185,7 +196,7 @@ def relax_packing(
     """
     import warp as wp
 
-    from warp_lamp.kernels import packing as K
+    from warp_lamp.kernels import packing as packing_kernels
 
     device = wp.get_device(device)
     n = len(radii)
@@ -203,13 +214,13 @@ def relax_packing(
         grid.build(x, query)
         worst.zero_()
         wp.launch(
-            K.packing_push,
+            packing_kernels.packing_push,
             dim=n,
             inputs=[grid.id, x, r, scale, body_radius, wp.vec3(*lo), wp.vec3(*hi), query],
             outputs=[dx, worst],
             device=device,
         )
-        wp.launch(K.packing_move, dim=n, inputs=[dx, MOMENTUM], outputs=[vel, x], device=device)
+        wp.launch(packing_kernels.packing_move, dim=n, inputs=[dx, MOMENTUM], outputs=[vel, x], device=device)
         if it % 10 == 9:
             w = float(worst.numpy()[0])
             if scale >= 1.0 and w < tol:
@@ -263,23 +274,15 @@ def scene_overlapping_box(
         cache: Read and write the on-disk cache.
     """
     size = np.asarray(size, dtype=np.float64)
-    params = dict(
-        kind="box", r=radius, size=size.tolist(), phi=solid_fraction, ov=max_overlap, seed=seed, v=_PACKING_VERSION
-    )
-    key = hashlib.sha1(json.dumps(params, sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_dir() / f"box-{key}.npz"
-    name = f"overlapping box, r = {radius * 1e3:g} mm"
-    if cache and path.exists():
-        data = np.load(path)
-        return Scene(name, data["centers"], data["radii"], size / 2.0)
-    rng = np.random.default_rng(seed)
-    n = round(float(solid_fraction * np.prod(size) / (4.0 / 3.0 * np.pi * radius**3)))
-    radii = np.full(n, radius)
-    x0 = rng.uniform(radius, size - radius, (n, 3))
-    centers = relax_packing(x0, radii, box=(np.zeros(3), size), tol=max_overlap, scale=0.8, device=device)
-    if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, centers=centers, radii=radii)
-        os.replace(tmp, path)
-    return Scene(name, centers, radii, size / 2.0)
+
+    def build():
+        rng = np.random.default_rng(seed)
+        n = round(float(solid_fraction * np.prod(size) / (4.0 / 3.0 * np.pi * radius**3)))
+        radii = np.full(n, radius)
+        x0 = rng.uniform(radius, size - radius, (n, 3))
+        centers = relax_packing(x0, radii, box=(np.zeros(3), size), tol=max_overlap, scale=0.8, device=device)
+        return centers, radii
+
+    params = dict(kind="box", r=radius, size=size.tolist(), phi=solid_fraction, ov=max_overlap, seed=seed)
+    centers, radii = _cached_packing("box", params, build, cache=cache)
+    return Scene(f"overlapping box, r = {radius * 1e3:g} mm", centers, radii, size / 2.0)

@@ -4,7 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_particles", "check_pressure"]
+__all__ = [
+    "DEFAULT_MAX_BYTES",
+    "check_box",
+    "check_budget",
+    "check_particles",
+    "check_pressure",
+    "check_shape",
+    "check_subdivisions",
+    "check_vec3",
+]
+
+#: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
+DEFAULT_MAX_BYTES = 2 << 30
 
 
 def _first_bad(mask: np.ndarray) -> int:
@@ -38,17 +50,66 @@ def check_particles(centers, radii) -> tuple[np.ndarray, np.ndarray]:
 
 def check_pressure(pressure) -> np.ndarray:
     """Pressure as float64 (Px, Py, Pz) [Pa]: one number for all axes, or one per axis."""
-    try:
-        p = np.asarray(pressure, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"pressure: expected a number or 3 numbers ({e})") from None
-    if p.ndim == 0:
-        p = np.full(3, float(p))
+    p = np.asarray(pressure, dtype=object)
     if p.shape == (1,):
-        p = np.full(3, float(p[0]))
-    if p.shape != (3,):
-        raise ValueError(f"pressure: expected a number or 3 numbers, got shape {p.shape}")
-    if not np.isfinite(p).all():
-        k = int(np.flatnonzero(~np.isfinite(p))[0])
-        raise ValueError(f"pressure: must be finite; index {k} is {p[k]!r}")
-    return p
+        pressure = p[0]
+    return check_vec3("pressure", pressure)
+
+
+def check_vec3(name: str, value, *, positive: bool = False) -> np.ndarray:
+    """Three finite float64 values (a scalar is repeated), > 0 where ``positive``."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: expected a number or 3 numbers ({e})") from None
+    if arr.ndim == 0:
+        arr = np.full(3, float(arr))
+    if arr.shape != (3,):
+        raise ValueError(f"{name}: expected a number or 3 numbers, got shape {arr.shape}")
+    bad = ~np.isfinite(arr) | ((arr <= 0) if positive else False)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        need = "finite and > 0" if positive else "finite"
+        raise ValueError(f"{name}: must be {need}; index {k} is {arr[k]!r}")
+    return arr
+
+
+def check_box(lower, upper) -> tuple[np.ndarray, np.ndarray]:
+    """A box's corners as float64 (3,) arrays, ``upper`` above ``lower`` on every axis."""
+    lo = check_vec3("lower", lower)
+    hi = check_vec3("upper", upper)
+    if np.any(hi <= lo):
+        k = int(np.flatnonzero(hi <= lo)[0])
+        raise ValueError(f"upper: must exceed lower on every axis; axis {k} has {hi[k]!r} <= {lo[k]!r}")
+    return lo, hi
+
+
+def check_shape(shape) -> tuple[int, int, int]:
+    """Three integers >= 1 (cells along x, y, z)."""
+    sh = np.asarray(shape).reshape(-1)
+    if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
+        raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {shape!r}")
+    if np.any(sh < 1):
+        k = int(np.flatnonzero(sh < 1)[0])
+        raise ValueError(f"shape: every entry must be >= 1; index {k} is {int(sh[k])}")
+    return tuple(int(x) for x in sh)
+
+
+def check_subdivisions(subdivisions) -> int:
+    """An integer >= 1."""
+    if isinstance(subdivisions, bool) or not isinstance(subdivisions, (int, np.integer)) or subdivisions < 1:
+        raise ValueError(f"subdivisions: expected an integer >= 1, got {subdivisions!r}")
+    return int(subdivisions)
+
+
+def check_budget(need: int, max_bytes, what: str, remedy: str) -> None:
+    """Raise ValueError, before anything is allocated, when ``need`` bytes exceed ``max_bytes``.
+
+    Args:
+        need: Bytes the call would allocate.
+        max_bytes: The caller's budget [bytes].
+        what: The start of the message: the argument to blame and what needs ``need`` bytes.
+        remedy: How to need fewer.
+    """
+    if need > max_bytes:
+        raise ValueError(f"{what}, over the budget of {int(max_bytes):,} bytes ({remedy})")

@@ -5,15 +5,12 @@ the same bitmap; times are device times of a captured graph (mark + count), medi
     python bench/experiments/voxel_variants.py          # the r = 1 mm target scene at s = 100
 """
 
-import sys
-
 import numpy as np
 import warp as wp
 
-sys.path.insert(0, ".")
-from warp_lamp.bench import _median_gpu_time
-from warp_lamp.kernels import porosity as K
+from warp_lamp.kernels import porosity as porosity_kernels
 from warp_lamp.scenes import scene_overlapping_box
+from warp_lamp.timing import time_median_events
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -78,7 +75,7 @@ def main():
 
     def count():
         wp.launch(
-            K.bitmap_count,
+            porosity_kernels.bitmap_count,
             dim=(shape[0], shape[1], sub[2]),
             inputs=[bits, wp.vec3i(*sub), words, wp.vec3i(s, s, s)],
             outputs=[counts],
@@ -89,7 +86,7 @@ def main():
         bits.zero_()
         counts.zero_()
         wp.launch(
-            K.voxel_mark,
+            porosity_kernels.voxel_mark,
             dim=scene.n,
             inputs=[pos, rad, wp.vec3d(*hs), wp.vec3i(*sub), words],
             outputs=[bits],
@@ -115,9 +112,9 @@ def main():
         if dev.is_cuda:
             with wp.ScopedCapture(device=dev) as cap:
                 fn()
-            t = _median_gpu_time(lambda c=cap: wp.capture_launch(c.graph), dev, 5)
+            t = time_median_events(lambda c=cap: wp.capture_launch(c.graph), dev, repeats=5)
         else:
-            t = _median_gpu_time(fn, dev, 2)
+            t = time_median_events(fn, dev, repeats=2)
         results[name] = snapshot
         print(f"{scene.n:,} spheres, {sub[0] * sub[1] * sub[2]:,} sub-cells: {name:<22} {t * 1e3:9.3f} ms", flush=True)
     a, b = results.values()

@@ -1,25 +1,16 @@
-"""Shining-lamp kernels: a depth pass (one thread per sphere) and a count scatter (one thread per cell).
+"""Shining-lamp kernels: seed, depth pass (one thread per sphere), count scatter (one thread per cell), forces.
 
-Frame: positions minus `origin` are the frame coordinates. The grid that looks along axis a spans the
-transverse axes u = (a+1)%3 and v = (a+2)%3; its cells are [corner_u + i h_u, ...) x [corner_v + j h_v, ...)
-in frame coordinates, i < n_u, j < n_v, stored row-major (j * n_u + i) from `offset[a]`. Each cell holds two
-keys: [2 c] for the low lamp (at minus infinity, shining toward +a) and [2 c + 1] for the high lamp. Both
-are resolved with atomic_min: the high lamp keys negated depths, so that one identity (EMPTY_KEY) and one
-tie rule (lowest id wins) serve both sides.
+Each cell holds two keys (``kernels/keys.py``): [2 c] for the low lamp (at minus infinity, shining toward +a) and
+[2 c + 1] for the high lamp. Both are resolved with atomic_min: the high lamp keys negated exit depths, so that
+one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. The grid arrives as one
+``LampGridParams`` (``kernels/grid.py``).
 """
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import (
-    EMPTY_KEY,
-    cell_axis,
-    cell_offset,
-    cell_span,
-    key_owner,
-    lamp_reach,
-    pack_key,
-    veltkamp_round26,
-)
+from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
+from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -29,8 +20,60 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False, "optimization
 #: in chunks (bench/NOTES.md v4).
 DEPTH_BLOCK_DIM = 128
 
+#: Slots of the diagnostics counter array.
 DIAG_INVALID = wp.constant(0)
 DIAG_OUTSIDE = wp.constant(1)
+N_DIAG = 2
+
+
+@wp.struct
+class LampParticles:
+    """The particles an update reads: centres [m] (world or frame coordinates, see ``LampGridParams.origin``),
+    radii [m], an optional activity mask (empty: all active), and their number."""
+
+    positions: wp.array[wp.vec3]
+    radii: wp.array[wp.float32]
+    active: wp.array[wp.int32]
+    n: wp.int32
+
+
+@wp.struct
+class FrameSphere:
+    """A particle in frame coordinates, and whether it casts light (active, finite, radius > 0)."""
+
+    center: wp.vec3
+    radius: wp.float32
+    casts: wp.bool
+
+
+@wp.func
+def inactive(particles: LampParticles, particle: wp.int32) -> wp.bool:
+    """Masked out by the caller (as opposed to invalid)."""
+    if particles.active.shape[0] > 0:
+        if particles.active[particle] == 0:
+            return True
+    return False
+
+
+@wp.func
+def frame_sphere(grid: LampGridParams, particles: LampParticles, particle: wp.int32) -> FrameSphere:
+    """Particle ``particle`` moved into the frame; ``casts`` is false for an index past n, an inactive particle, or a
+    non-finite position or radius, or a radius <= 0."""
+    out = FrameSphere()
+    out.casts = False
+    if particle >= particles.n:
+        return out
+    if inactive(particles, particle):
+        return out
+    p = particles.positions[particle] - grid.origin
+    r = particles.radii[particle]
+    # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r) and r > 0.0):
+        return out
+    out.center = p
+    out.radius = r
+    out.casts = True
+    return out
 
 
 @wp.func
@@ -71,7 +114,7 @@ def row_live(keys: wp.array[wp.uint64], row: wp.int32, c0: wp.int32, c1: wp.int3
     return live
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def lamp_clear(
     n_particles: wp.int32,
     # outputs
@@ -87,42 +130,10 @@ def lamp_clear(
         diag[t] = 0
 
 
-@wp.func
-def particle_frame(
-    pid: wp.int32,
-    n: wp.int32,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    active: wp.array[wp.int32],
-    origin: wp.vec3,
-) -> wp.vec4:
-    """(frame position, radius) of a particle that can cast light; radius 0 when inactive or invalid."""
-    if pid >= n:
-        return wp.vec4(0.0)
-    if active.shape[0] > 0:
-        if active[pid] == 0:
-            return wp.vec4(0.0)
-    p = positions[pid] - origin
-    r = radii[pid]
-    # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
-    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r) and r > 0.0):
-        return wp.vec4(0.0)
-    return wp.vec4(p[0], p[1], p[2], r)
-
-
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def lamp_seed(
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    active: wp.array[wp.int32],
-    n: wp.int32,
-    origin: wp.vec3,
-    corner_u: wp.vec3,
-    corner_v: wp.vec3,
-    h_u: wp.vec3,
-    h_v: wp.vec3,
-    n_u: wp.vec3i,
-    offset: wp.vec3i,
+    grid: LampGridParams,
+    particles: LampParticles,
     criterion: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
@@ -135,31 +146,29 @@ def lamp_seed(
     almost no atomics. This replaces clearing the keys.
     """
     c = wp.tid()
-    a = cell_axis(c, offset)
-    local = c - offset[a]
-    j = local / n_u[a]
-    i = local - j * n_u[a]
+    cell = grid_cell(grid, c)
+    a = cell[0]
     for side in range(2):
         key = keys[2 * c + side]
         if key != EMPTY_KEY:
             owner = key_owner(key)
-            q = particle_frame(owner, n, positions, radii, active, origin)
+            sphere = frame_sphere(grid, particles, owner)
             key = EMPTY_KEY
-            r = q[3]
-            if r > 0.0:
-                dv = cell_offset(j, h_v[a], q[(a + 2) % 3] - corner_v[a], criterion)
-                du = cell_offset(i, h_u[a], q[(a + 1) % 3] - corner_u[a], criterion)
+            if sphere.casts:
+                r = sphere.radius
+                dv = cell_offset(cell[2], grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
+                du = cell_offset(cell[1], grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
                 rem = r * r - dv * dv
                 if rem >= 0.0 and du * du <= rem:
-                    s = lamp_reach(rem, du, criterion)
+                    reach = lamp_reach(rem, du, criterion)
                     if side == 0:
-                        key = pack_key(q[a] - s, owner)
+                        key = pack_key(sphere.center[a] - reach, owner)
                     else:
-                        key = pack_key(-(q[a] + s), owner)
+                        key = pack_key(-(sphere.center[a] + reach), owner)
             keys[2 * c + side] = key
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def lamp_forget(
     # outputs
     keys: wp.array[wp.uint64],
@@ -167,19 +176,10 @@ def lamp_forget(
     keys[wp.tid()] = EMPTY_KEY
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def lamp_depth(
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    active: wp.array[wp.int32],
-    origin: wp.vec3,
-    corner_u: wp.vec3,
-    corner_v: wp.vec3,
-    h_u: wp.vec3,
-    h_v: wp.vec3,
-    n_u: wp.vec3i,
-    n_v: wp.vec3i,
-    offset: wp.vec3i,
+    grid: LampGridParams,
+    particles: LampParticles,
     criterion: wp.int32,
     lamp_mask: wp.int32,
     # outputs
@@ -188,33 +188,28 @@ def lamp_depth(
 ):
     """One thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk
     covers, on the three grids, with atomic_min: the order of offers cannot change the result."""
-    pid = wp.tid()
-    q = particle_frame(pid, positions.shape[0], positions, radii, active, origin)
-    r = q[3]
-    if r == 0.0:
-        inactive = int(0)
-        if active.shape[0] > 0:
-            if active[pid] == 0:
-                inactive = 1
-        if inactive == 0:
+    particle = wp.tid()
+    sphere = frame_sphere(grid, particles, particle)
+    if not sphere.casts:
+        if not inactive(particles, particle):
             wp.atomic_add(diag, DIAG_INVALID, 1)
         return
+    r = sphere.radius
     r2 = r * r
     outside = int(0)
     for a in range(3):
         lamp_bits = (lamp_mask >> (2 * a)) & 3
         if lamp_bits == 0:
             continue
-        pu = q[(a + 1) % 3] - corner_u[a]
-        pv = q[(a + 2) % 3] - corner_v[a]
-        pd = q[a]
-        hu = h_u[a]
-        hv = h_v[a]
-        nu = n_u[a]
-        nv = n_v[a]
+        pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+        pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+        pd = sphere.center[a]
+        hu = grid.h_u[a]
+        hv = grid.h_v[a]
+        nu = grid.n_u[a]
+        nv = grid.n_v[a]
         if pu - r < 0.0 or pv - r < 0.0 or pu + r > hu * float(nu) or pv + r > hv * float(nv):
             outside = 1
-        base = offset[a]
         rows = cell_span(pv - r, pv + r, hv, nv, criterion)
         for j in range(rows[0], rows[1] + 1):
             # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
@@ -225,7 +220,7 @@ def lamp_depth(
                 continue
             w = wp.sqrt(rem)
             cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-            row = 2 * (base + j * nu)
+            row = 2 * (grid.offset[a] + j * nu)
             # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
             # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
             # the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
@@ -237,27 +232,27 @@ def lamp_depth(
             for i in range(cols[0], cols[1] + 1):
                 du = cell_offset(i, hu, pu, criterion)
                 if du * du <= rem:
-                    s = lamp_reach(rem, du, criterion)
+                    depth = lamp_reach(rem, du, criterion)
                     slot = row + 2 * i
                     if (live & 1) != 0:
-                        offer(keys, slot, pack_key(pd - s, pid))
+                        offer(keys, slot, pack_key(pd - depth, particle))
                     if (live & 2) != 0:
-                        offer(keys, slot + 1, pack_key(-(pd + s), pid))
+                        offer(keys, slot + 1, pack_key(-(pd + depth), particle))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def lamp_scatter(
+    grid: LampGridParams,
     keys: wp.array[wp.uint64],
-    offset: wp.vec3i,
     # outputs
     counts: wp.array[wp.int32],
 ):
     """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
     the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
     c = wp.tid()
-    a = cell_axis(c, offset)
+    a = grid_cell(grid, c)[0]
     low = keys[2 * c]
     high = keys[2 * c + 1]
     if low != EMPTY_KEY:
@@ -266,7 +261,14 @@ def lamp_scatter(
         wp.atomic_add(counts, 3 * key_owner(high) + a, -1)
 
 
-@wp.kernel(enable_backward=False)
+@wp.func
+def veltkamp_round26(x: wp.float64) -> wp.float64:
+    """x rounded to 26 significant bits (Veltkamp split), so that x times any count below 2**27 is exact."""
+    t = x * wp.float64(134217729.0)
+    return t - (t - x)
+
+
+@wp.kernel
 def lamp_add_forces(
     counts: wp.array[wp.int32],
     area: wp.vec3d,

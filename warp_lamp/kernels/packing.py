@@ -5,7 +5,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def packing_push(
     grid: wp.uint64,
     x: wp.array[wp.vec3],
@@ -60,7 +60,7 @@ def packing_push(
     dx[i] = d
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def packing_move(
     dx: wp.array[wp.vec3],
     momentum: wp.float32,

@@ -2,16 +2,17 @@
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import EMPTY_KEY, cell_axis, lamp_reach, pack_key
+from warp_lamp.kernels.footprint import lamp_reach
+from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, pack_key
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def bvh_sphere_bounds(
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
-    origin: wp.vec3,
     # outputs
     lowers: wp.array[wp.vec3],
     uppers: wp.array[wp.vec3],
@@ -19,25 +20,19 @@ def bvh_sphere_bounds(
     """Frame-coordinate boxes, padded by a relative 1e-6 so that a grazing ray is never lost to rounding in
     the BVH's slab test: the exact hit test below decides."""
     i = wp.tid()
-    p = positions[i] - origin
+    p = positions[i]
     r = radii[i]
     pad = r * 1.000001 + 1.0e-6 * wp.max(wp.abs(p[0]), wp.max(wp.abs(p[1]), wp.abs(p[2])))
     lowers[i] = p - wp.vec3(pad)
     uppers[i] = p + wp.vec3(pad)
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def bvh_cast(
+    grid: LampGridParams,
     bvh: wp.uint64,
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
-    origin: wp.vec3,
-    corner_u: wp.vec3,
-    corner_v: wp.vec3,
-    h_u: wp.vec3,
-    h_v: wp.vec3,
-    n_u: wp.vec3i,
-    offset: wp.vec3i,
     start_lo: wp.vec3,
     start_hi: wp.vec3,
     # outputs
@@ -51,13 +46,10 @@ def bvh_cast(
     t = wp.tid()
     c = t / 2
     side = t - 2 * c
-    a = cell_axis(c, offset)
-    local = c - offset[a]
-    nu = n_u[a]
-    j = local / nu
-    i = local - j * nu
-    u = (float(i) + 0.5) * h_u[a]
-    v = (float(j) + 0.5) * h_v[a]
+    cell = grid_cell(grid, c)
+    a = cell[0]
+    u = (float(cell[1]) + 0.5) * grid.h_u[a]
+    v = (float(cell[2]) + 0.5) * grid.h_v[a]
     start = wp.vec3(0.0)
     d = wp.vec3(0.0)
     if side == 0:
@@ -66,17 +58,17 @@ def bvh_cast(
     else:
         start[a] = start_hi[a]
         d[a] = -1.0
-    start[(a + 1) % 3] = u + corner_u[a]
-    start[(a + 2) % 3] = v + corner_v[a]
+    start[(a + 1) % 3] = u + grid.corner_u[a]
+    start[(a + 2) % 3] = v + grid.corner_v[a]
     best = EMPTY_KEY
     max_dist = float(1.0e30)
     q = wp.bvh_query_ray(bvh, start, d)
     k = int(0)
     while wp.bvh_query_next(q, k, max_dist):
-        p = positions[k] - origin
+        p = positions[k] - grid.origin
         r = radii[k]
-        du = u - (p[(a + 1) % 3] - corner_u[a])
-        dv = v - (p[(a + 2) % 3] - corner_v[a])
+        du = u - (p[(a + 1) % 3] - grid.corner_u[a])
+        dv = v - (p[(a + 2) % 3] - grid.corner_v[a])
         rem = r * r - dv * dv
         du2 = du * du
         # The lamp's own test and depth, written the same way, so that owners compare bitwise.
@@ -97,7 +89,7 @@ def bvh_cast(
     keys[t] = best
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def probe_atomic_min(
     seed: wp.int32,
     iters: wp.int32,
@@ -111,12 +103,3 @@ def probe_atomic_min(
     for _ in range(iters):
         idx = wp.int32(wp.randi(state)) & mask
         wp.atomic_min(table, idx, wp.uint64(wp.randi(state)))
-
-
-@wp.kernel(enable_backward=False)
-def fill_u64(
-    value: wp.uint64,
-    # outputs
-    out: wp.array[wp.uint64],
-):
-    out[wp.tid()] = value

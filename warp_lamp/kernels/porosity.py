@@ -3,12 +3,13 @@ sub-cells on a bitmap (voxel, midpoint). Coordinates are relative to the box's l
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import ALL_BITS, cell_index_span
+from warp_lamp.kernels.footprint import cell_offset, cell_span
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
 PI = wp.constant(wp.float64(3.141592653589793))
 HALF_PI = wp.constant(wp.float64(1.5707963267948966))
+FULL_WORD = wp.constant(wp.uint32(0xFFFFFFFF))
 
 
 # --- exact sphere-box volume ------------------------------------------------------------------------------
@@ -129,32 +130,49 @@ def sphere_box_volume(lo: wp.vec3d, hi: wp.vec3d, r: wp.float64) -> wp.float64:
     return total
 
 
-@wp.kernel(enable_backward=False)
-def porosity_exact(
+#: Per-cell volume of ``porosity_box``.
+BOX_EXACT = wp.constant(0)
+BOX_CUBE = wp.constant(1)
+
+
+@wp.kernel
+def porosity_box(
     centers: wp.array[wp.vec3d],
     radii: wp.array[wp.float64],
     h: wp.vec3d,
     shape: wp.vec3i,
+    volume: wp.int32,
     # outputs
     solid: wp.array3d[wp.float64],
 ):
-    """One thread per sphere: the exact volume of the sphere in every cell it reaches, summed (overlaps twice)."""
+    """One thread per sphere adds its volume in every cell its bounding box reaches (overlaps count twice):
+    ``BOX_EXACT``, the exact sphere-cell volume; ``BOX_CUBE``, PFC's polyhedron mode as the paper describes it,
+    the overlap of the sphere's bounding cube with the cell (so a cell gets up to 6/pi times its share)."""
     s = wp.tid()
     c = centers[s]
     r = radii[s]
-    xs = cell_index_span(c[0] - r, c[0] + r, h[0], shape[0])
-    ys = cell_index_span(c[1] - r, c[1] + r, h[1], shape[1])
-    zs = cell_index_span(c[2] - r, c[2] + r, h[2], shape[2])
+    xs = cell_span(c[0] - r, c[0] + r, h[0], shape[0], 0)
+    ys = cell_span(c[1] - r, c[1] + r, h[1], shape[1], 0)
+    zs = cell_span(c[2] - r, c[2] + r, h[2], shape[2], 0)
+    zero = wp.float64(0.0)
     for i in range(xs[0], xs[1] + 1):
         for j in range(ys[0], ys[1] + 1):
             for k in range(zs[0], zs[1] + 1):
-                lo = wp.vec3d(wp.float64(i) * h[0], wp.float64(j) * h[1], wp.float64(k) * h[2]) - c
-                v = sphere_box_volume(lo, lo + h, r)
-                if v > wp.float64(0.0):
+                cell = wp.vec3i(i, j, k)
+                v = zero
+                if volume == BOX_EXACT:
+                    lo = wp.vec3d(wp.float64(i) * h[0], wp.float64(j) * h[1], wp.float64(k) * h[2]) - c
+                    v = sphere_box_volume(lo, lo + h, r)
+                else:
+                    v = wp.float64(1.0)
+                    for d in range(3):
+                        hi = wp.min(c[d] + r, wp.float64(cell[d] + 1) * h[d])
+                        v *= wp.max(hi - wp.max(c[d] - r, wp.float64(cell[d]) * h[d]), zero)
+                if v > zero:
                     wp.atomic_add(solid, i, j, k, v)
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def porosity_centroid(
     centers: wp.array[wp.vec3d],
     radii: wp.array[wp.float64],
@@ -176,35 +194,6 @@ def porosity_centroid(
     wp.atomic_add(solid, idx[0], idx[1], idx[2], wp.float64(4.0) / wp.float64(3.0) * PI * r * r * r)
 
 
-@wp.kernel(enable_backward=False)
-def porosity_polyhedron(
-    centers: wp.array[wp.vec3d],
-    radii: wp.array[wp.float64],
-    h: wp.vec3d,
-    shape: wp.vec3i,
-    # outputs
-    solid: wp.array3d[wp.float64],
-):
-    """PFC's polyhedron mode as the paper describes it: the sphere's bounding cube, split among the cells by
-    the cube's overlap with each (so a cell gets up to 6/pi times the sphere's share)."""
-    s = wp.tid()
-    c = centers[s]
-    r = radii[s]
-    xs = cell_index_span(c[0] - r, c[0] + r, h[0], shape[0])
-    ys = cell_index_span(c[1] - r, c[1] + r, h[1], shape[1])
-    zs = cell_index_span(c[2] - r, c[2] + r, h[2], shape[2])
-    zero = wp.float64(0.0)
-    for i in range(xs[0], xs[1] + 1):
-        ox = wp.max(wp.min(c[0] + r, wp.float64(i + 1) * h[0]) - wp.max(c[0] - r, wp.float64(i) * h[0]), zero)
-        for j in range(ys[0], ys[1] + 1):
-            oy = wp.max(wp.min(c[1] + r, wp.float64(j + 1) * h[1]) - wp.max(c[1] - r, wp.float64(j) * h[1]), zero)
-            for k in range(zs[0], zs[1] + 1):
-                oz = wp.max(wp.min(c[2] + r, wp.float64(k + 1) * h[2]) - wp.max(c[2] - r, wp.float64(k) * h[2]), zero)
-                v = ox * oy * oz
-                if v > zero:
-                    wp.atomic_add(solid, i, j, k, v)
-
-
 # --- union on a sub-cell bitmap ---------------------------------------------------------------------------
 
 
@@ -216,13 +205,13 @@ def set_run(bits: wp.array[wp.uint32], row: wp.int32, i0: wp.int32, i1: wp.int32
     for w in range(w0, w1 + 1):
         lo = wp.max(i0 - (w << 5), 0)
         hi = wp.min(i1 - (w << 5), 31)
-        mask = ALL_BITS
+        mask = FULL_WORD
         if hi - lo < 31:
             mask = ((wp.uint32(1) << wp.uint32(hi - lo + 1)) - wp.uint32(1)) << wp.uint32(lo)
         wp.atomic_or(bits, row + w, mask)
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def voxel_mark(
     centers: wp.array[wp.vec3d],
     radii: wp.array[wp.float64],
@@ -235,48 +224,38 @@ def voxel_mark(
     """One thread per sphere: set every sub-cell whose centre lies in the sphere (|x - c| <= r), one run per
     sub-row. True sub-cell centres, no rounding of the sphere to the sub-grid.
 
-    The run's ends come from the span of ``w = sqrt(r^2 - dy^2 - dz^2)`` and are then moved to the exact test
-    ``dx^2 <= rem``, which is monotone in |dx| along the row, so the run is exactly the sub-cells that pass.
+    Rows and runs come from ``footprint.cell_span``, the lamp's span function, in float64.
     """
     s = wp.tid()
     c = centers[s]
     r = radii[s]
     r2 = r * r
-    js = cell_index_span(c[1] - r - wp.float64(0.5) * hs[1], c[1] + r - wp.float64(0.5) * hs[1], hs[1], sub[1])
+    js = cell_span(c[1] - r, c[1] + r, hs[1], sub[1], 1)
     for j in range(js[0], js[1] + 1):
-        dy = (wp.float64(j) + wp.float64(0.5)) * hs[1] - c[1]
+        dy = cell_offset(j, hs[1], c[1], 1)
         ry2 = r2 - dy * dy
         if ry2 < wp.float64(0.0):
             continue
         ry = wp.sqrt(ry2)
-        ks = cell_index_span(c[2] - ry - wp.float64(0.5) * hs[2], c[2] + ry - wp.float64(0.5) * hs[2], hs[2], sub[2])
+        ks = cell_span(c[2] - ry, c[2] + ry, hs[2], sub[2], 1)
         for k in range(ks[0], ks[1] + 1):
-            dz = (wp.float64(k) + wp.float64(0.5)) * hs[2] - c[2]
+            dz = cell_offset(k, hs[2], c[2], 1)
             rem = ry2 - dz * dz
             if rem < wp.float64(0.0):
                 continue
             w = wp.sqrt(rem)
-            span = cell_index_span(
-                c[0] - w - wp.float64(0.5) * hs[0], c[0] + w - wp.float64(0.5) * hs[0], hs[0], sub[0]
-            )
+            # The span of centres is a superset (footprint.cell_span): trim it to the exact test, which is
+            # monotone in |dx| along the row, so the run is exactly the sub-cells that pass.
+            span = cell_span(c[0] - w, c[0] + w, hs[0], sub[0], 1)
             i0 = span[0]
             i1 = span[1]
-            # The span of centres may be one off at either end after rounding: settle it with the exact test.
-            if i0 > 0:
-                dx = (wp.float64(i0 - 1) + wp.float64(0.5)) * hs[0] - c[0]
-                if dx * dx <= rem:
-                    i0 -= 1
-            if i1 < sub[0] - 1:
-                dx = (wp.float64(i1 + 1) + wp.float64(0.5)) * hs[0] - c[0]
-                if dx * dx <= rem:
-                    i1 += 1
             while i0 <= i1:
-                dx = (wp.float64(i0) + wp.float64(0.5)) * hs[0] - c[0]
+                dx = cell_offset(i0, hs[0], c[0], 1)
                 if dx * dx <= rem:
                     break
                 i0 += 1
             while i1 >= i0:
-                dx = (wp.float64(i1) + wp.float64(0.5)) * hs[0] - c[0]
+                dx = cell_offset(i1, hs[0], c[0], 1)
                 if dx * dx <= rem:
                     break
                 i1 -= 1
@@ -301,14 +280,24 @@ def midpoint_line(
 
 
 @wp.func
+def midpoint_step(x: int, y: int, p4: int) -> wp.vec2i:
+    """One step of the midpoint circle recurrence, the paper's ``if p < 0: p += 2x + 3; else: p += 2(x - y) + 5;
+    y -= 1``, on p4 = 4 p: p starts at 5/4 - r and moves by integers, so 4 p is an exact integer. Returns the
+    new (y, p4); the caller advances x."""
+    if p4 < 0:
+        return wp.vec2i(y, p4 + 4 * (2 * x + 3))
+    return wp.vec2i(y - 1, p4 + 4 * (2 * (x - y) + 5))
+
+
+@wp.func
 def midpoint_disk(
     bits: wp.array[wp.uint32], sub: wp.vec3i, words: wp.int32, cx: int, cy: int, cz: int, rad: int, z: int
 ):
     """Algorithm 1's disk(): a midpoint circle of radius rad filled with lines, at heights +z and -z."""
     x = int(0)
-    yr = rad
-    p = wp.float64(1.25) - wp.float64(rad)
-    while yr >= x:
+    yp = wp.vec2i(rad, 5 - 4 * rad)
+    while yp[0] >= x:
+        yr = yp[0]
         for sz in range(2):
             zz = z
             if sz == 1:
@@ -317,15 +306,11 @@ def midpoint_disk(
             midpoint_line(bits, sub, words, cx, cy, cz, yr, x, zz)
             midpoint_line(bits, sub, words, cx, cy, cz, x, -yr, zz)
             midpoint_line(bits, sub, words, cx, cy, cz, yr, -x, zz)
-        if p < wp.float64(0.0):
-            p = p + wp.float64(2 * x + 3)
-        else:
-            p = p + wp.float64(2 * (x - yr) + 5)
-            yr -= 1
+        yp = midpoint_step(x, yr, yp[1])
         x += 1
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def midpoint_mark(
     centers: wp.array[wp.vec3i],
     radii: wp.array[wp.int32],
@@ -335,24 +320,17 @@ def midpoint_mark(
     bits: wp.array[wp.uint32],
 ):
     """Algorithm 1 (traversal sphere), one thread per sphere, on sphere centres and radii in sub-cell units."""
-    s = wp.tid()
-    c = centers[s]
-    rad = radii[s]
+    c = centers[wp.tid()]
     z = int(0)
-    yr = rad
-    p = wp.float64(1.25) - wp.float64(rad)
-    while yr >= z:
-        midpoint_disk(bits, sub, words, c[0], c[1], c[2], yr, z)
-        midpoint_disk(bits, sub, words, c[0], c[1], c[2], z, yr)
-        if p < wp.float64(0.0):
-            p = p + wp.float64(2 * z + 3)
-        else:
-            p = p + wp.float64(2 * (z - yr) + 5)
-            yr -= 1
+    yp = wp.vec2i(radii[wp.tid()], 5 - 4 * radii[wp.tid()])
+    while yp[0] >= z:
+        midpoint_disk(bits, sub, words, c[0], c[1], c[2], yp[0], z)
+        midpoint_disk(bits, sub, words, c[0], c[1], c[2], z, yp[0])
+        yp = midpoint_step(z, yp[0], yp[1])
         z += 1
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def midpoint_grid_mark(
     grid: wp.uint64,
     centers: wp.array[wp.vec3i],
@@ -388,7 +366,7 @@ def midpoint_grid_mark(
     bits[t] = word
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel
 def bitmap_count(
     bits: wp.array[wp.uint32],
     sub: wp.vec3i,
@@ -407,7 +385,7 @@ def bitmap_count(
         for w in range(i0 >> 5, (i1 >> 5) + 1):
             lo = wp.max(i0 - (w << 5), 0)
             hi = wp.min(i1 - (w << 5), 31)
-            mask = ALL_BITS
+            mask = FULL_WORD
             if hi - lo < 31:
                 mask = ((wp.uint32(1) << wp.uint32(hi - lo + 1)) - wp.uint32(1)) << wp.uint32(lo)
             total += wp.int32(wp.bit_count(bits[row + w] & mask))

@@ -1,31 +1,27 @@
 """What fuse_fp=False costs the lamp on CUDA, and whether CUDA still matches the CPU bitwise with it on."""
 
-import sys
-
 import numpy as np
 import warp as wp
 
-wp.config.log_level = wp.LOG_WARNING
-wp.init()
-sys.path.insert(0, ".")
+from warp_lamp.bench import lattice_grid, time_lamp
+from warp_lamp.kernels import footprint, lamp
+from warp_lamp.lamp import lamp_update
+from warp_lamp.scenes import scene_lattice_box
 
-from warp_lamp.bench import _lattice_grid, time_lamp  # noqa: E402
-from warp_lamp.kernels import footprint, lamp  # noqa: E402
-from warp_lamp.lamp import lamp_solve  # noqa: E402
-from warp_lamp.scenes import scene_lattice_box  # noqa: E402
+wp.config.log_level = wp.LOG_WARNING
 
 dev = wp.get_device("cuda:0")
 scene = scene_lattice_box(100)
-grid = _lattice_grid(scene, 0.25)
+grid = lattice_grid(scene, 0.25)
 rng = np.random.default_rng(1)
 c = rng.uniform(0, 12, (3000, 3))
 r = rng.uniform(0.1, 0.9, 3000)
-cpu = lamp_solve(c, r, cells_per_diameter=8, device="cpu").diagnostics()
+cpu = lamp_update(c, r, cells_per_diameter=8, device="cpu").diagnostics()
 for fuse in (False, True):
     for mod in (footprint, lamp):
         wp.set_module_options({"fuse_fp": fuse}, module=mod)
     t = time_lamp(scene, grid, 1, dev, repeats=50)
-    gpu = lamp_solve(c, r, cells_per_diameter=8, device=dev).diagnostics()
+    gpu = lamp_update(c, r, cells_per_diameter=8, device=dev).diagnostics()
     same = all(np.array_equal(cpu.depths[k], gpu.depths[k], equal_nan=True) for k in cpu.depths)
     print(
         f"fuse_fp={fuse}: replay {t['replay_s'] * 1e3:.4f} ms, depth {t['depth_s'] * 1e3:.4f} ms, "

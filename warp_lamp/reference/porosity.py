@@ -1,140 +1,25 @@
-"""Plain float64 NumPy references for the kernels, written for clarity rather than speed.
-
-The lamp reference decides every cell in float64. The kernels decide in float32, so where a decision sits
-within float32 rounding of a boundary (a cell centre on a sphere's silhouette, two depths within rounding of
-each other) the two may legitimately differ: the reference flags those cells as ambiguous, with a bound
-derived from float32's unit roundoff, and tests compare every other cell exactly.
-"""
+"""Float64 references of the porosity methods, written for clarity rather than speed."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
 import numpy as np
 
-from warp_lamp.grid import LampGrid
-from warp_lamp.lamp import LAMPS, lamp_mask
-
 __all__ = [
-    "EPS32",
-    "LampReference",
-    "lamp_reference",
+    "PAPER_TABLE_1",
     "midpoint_sphere_offsets",
+    "midpoint_spheres",
     "octant_volume",
     "porosity_reference",
     "sphere_box_volume",
 ]
 
-#: Unit roundoff of float32.
-EPS32 = 2.0**-24
-
-
-@dataclass
-class LampReference:
-    """Reference answer. ``owners``, ``depths`` and ``ambiguous`` are per lamp name, indexed ``[i, j]``."""
-
-    owners: dict
-    depths: dict
-    ambiguous: dict
-    counts: np.ndarray
-
-
-def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_side: bool):
-    """Per-cell winner of one lamp, plus the ambiguity band. Spheres are visited in index order."""
-    u, v = (a + 1) % 3, (a + 2) % 3
-    (cu, cv), (hu, hv), (nu, nv) = grid.corner[a], grid.cell[a], grid.counts[a]
-    cu -= grid.origin[u]
-    cv -= grid.origin[v]
-    best = np.full((nu, nv), np.inf)
-    best_id = np.full((nu, nv), -1)
-    best_tol = np.zeros((nu, nv))
-    best_near = np.zeros((nu, nv), dtype=bool)
-    others_lo = np.full((nu, nv), np.inf)
-    for k in np.flatnonzero(visible):
-        pu, pv, pd, rk = local_c[k, u] - cu, local_c[k, v] - cv, local_c[k, a], r[k]
-        i0 = max(int(np.floor((pu - rk) / hu)) - 1, 0)
-        i1 = min(int(np.floor((pu + rk) / hu)) + 1, nu - 1)
-        j0 = max(int(np.floor((pv - rk) / hv)) - 1, 0)
-        j1 = min(int(np.floor((pv + rk) / hv)) + 1, nv - 1)
-        if i0 > i1 or j0 > j1:
-            continue
-        ii, jj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
-        if criterion == 1:
-            du = (ii + 0.5) * hu - pu
-            dv = (jj + 0.5) * hv - pv
-        else:
-            du = np.maximum(np.maximum(ii * hu - pu, pu - (ii + 1) * hu), 0.0)
-            dv = np.maximum(np.maximum(jj * hv - pv, pv - (jj + 1) * hv), 0.0)
-        d2 = du * du + dv * dv
-        # The kernels test du^2 <= r^2 - dv^2 in float32: the same criterion, rounded differently.
-        # Rounding of the float32 inputs and of each float32 operation on the way to d2 and r2.
-        scale_u = np.abs(ii + 1) * hu + abs(pu) + abs(local_c[k, u]) + abs(cu)
-        scale_v = np.abs(jj + 1) * hv + abs(pv) + abs(local_c[k, v]) + abs(cv)
-        err2 = 16 * EPS32 * (rk * rk + d2 + 2 * np.abs(du) * scale_u + 2 * np.abs(dv) * scale_v)
-        hit = d2 <= rk * rk
-        near = np.abs(d2 - rk * rk) <= err2
-        if criterion == 1:
-            s2 = np.maximum(rk * rk - d2, 0.0)
-            s = np.sqrt(s2)
-            depth = pd - s if lo_side else -(pd + s)
-            ds = np.where(s2 > err2, err2 / (2 * np.sqrt(np.maximum(s2, err2))), np.sqrt(err2))
-            tol = 8 * EPS32 * (abs(pd) + s) + 2 * ds
-        else:
-            depth = np.full(d2.shape, pd if lo_side else -pd)
-            tol = np.full(d2.shape, 8 * EPS32 * abs(pd))
-        sl = (slice(i0, i1 + 1), slice(j0, j1 + 1))
-        wins = hit & (depth < best[sl])
-        # A displaced winner, and every losing candidate or near miss, can still win under rounding if it
-        # comes within tolerance of the final winner: keep the lowest (depth - tol) of them.
-        displaced = wins & (best_id[sl] >= 0)
-        others_lo[sl] = np.where(displaced, np.minimum(others_lo[sl], best[sl] - best_tol[sl]), others_lo[sl])
-        loser = (hit | near) & ~wins
-        others_lo[sl] = np.where(loser, np.minimum(others_lo[sl], depth - tol), others_lo[sl])
-        best[sl] = np.where(wins, depth, best[sl])
-        best_id[sl] = np.where(wins, k, best_id[sl])
-        best_tol[sl] = np.where(wins, tol, best_tol[sl])
-        best_near[sl] = np.where(wins, near, best_near[sl])
-    lit = best_id >= 0
-    ambiguous = np.where(lit, best_near | (others_lo <= best + best_tol), np.isfinite(others_lo))
-    depth_global = (best if lo_side else -best) + grid.origin[a]
-    return best_id, np.where(lit, depth_global, np.nan), ambiguous
-
-
-def lamp_reference(centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None) -> LampReference:
-    """Owners, depths and signed counts of every lamp, in float64, by brute force over spheres and cells.
-
-    Args:
-        centers: Particle centres [m], shape (N, 3).
-        radii: Particle radii [m], shape (N,).
-        grid: The lamp grids.
-        criterion: 1 (cell-centre ray) or 0 (cell rectangle meets the projected disk).
-        lamps: "all" or names from :data:`warp_lamp.LAMPS`.
-        active: Optional mask, shape (N,); inactive particles are left out.
-    """
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    n = len(r)
-    visible = np.ones(n, dtype=bool) if active is None else np.asarray(active) != 0
-    local_c = c - grid.origin
-    mask = lamp_mask(lamps)
-    owners, depths, ambiguous = {}, {}, {}
-    counts = np.zeros((n, 3), dtype=np.int64)
-    for a in range(3):
-        for side in range(2):
-            name = LAMPS[2 * a + side]
-            shape = tuple(int(x) for x in grid.counts[a])
-            if not mask >> (2 * a + side) & 1:
-                owners[name] = np.full(shape, -1)
-                depths[name] = np.full(shape, np.nan)
-                ambiguous[name] = np.zeros(shape, dtype=bool)
-                continue
-            own, dep, amb = _lamp_cells(local_c, r, visible, grid, a, criterion, side == 0)
-            owners[name], depths[name], ambiguous[name] = own, dep, amb
-            np.add.at(counts[:, a], own[own >= 0], 1 if side == 0 else -1)
-    return LampReference(owners, depths, ambiguous, counts)
-
-
-# --- porosity -----------------------------------------------------------------------------------------------
+#: Table 1 of Zhang et al. (2024): sub-cells their Algorithm 1 marks for radius 1 ... 25.
+PAPER_TABLE_1 = [
+    1, 35, 93, 223, 529, 819, 1405, 1987, 2845, 4175, 5425, 7111, 8985,
+    11267, 13793, 16595, 20165, 24115, 28461, 32943, 37969, 43823, 50537, 57115, 64025,
+]  # fmt: skip
 
 
 def _octant_f(y, a, c, r):
@@ -226,10 +111,28 @@ def midpoint_sphere_offsets(rad: int) -> np.ndarray:
     return np.array(sorted(marked), dtype=np.int64).reshape(-1, 3)
 
 
+def midpoint_spheres(local, radii, hs):
+    """The midpoint method's inputs, written independently of ``warp_lamp.porosity``: each centre goes to the
+    sub-cell that holds it (floor), each radius to the nearest whole number of sub-cells of the smallest sub-cell
+    edge (ties to even, as Python's ``round``), at least 1."""
+    h = min(float(x) for x in hs)
+    centers = np.array([[math.floor(float(x) / float(s)) for x, s in zip(p, hs, strict=True)] for p in local])
+    rad = np.array([max(round(float(r) / h), 1) for r in radii])
+    return centers.reshape(-1, 3).astype(np.int64), rad.astype(np.int64)
+
+
+def _midpoint_algorithm(rad, n_subcells: int) -> int:
+    """The paper's section 2.3 choice: Algorithm 2 when the spheres' total sub-cell volume, sum 4/3 pi r^3,
+    exceeds K (2R)^3, the work of searching a cube of side 2R around each of the K sub-cells; else Algorithm 1."""
+    if len(rad) == 0:
+        return 1
+    work_1 = sum(4.0 / 3.0 * math.pi * float(r) ** 3 for r in rad)
+    work_2 = n_subcells * (2.0 * float(max(rad))) ** 3
+    return 2 if work_1 > work_2 else 1
+
+
 def porosity_reference(centers, radii, lower, upper, shape, *, method="voxel", subdivisions=8, midpoint_algorithm=None):
     """Porosity by brute force in float64, per method, as :func:`warp_lamp.porosity` defines it."""
-    from warp_lamp.porosity import _midpoint_spheres, midpoint_choice
-
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
     lo = np.asarray(lower, dtype=np.float64)
@@ -275,8 +178,8 @@ def porosity_reference(centers, radii, lower, upper, shape, *, method="voxel", s
             d2 = dx[:, None, None] ** 2 + dy[None, :, None] ** 2 + dz[None, None, :] ** 2
             occupied[tuple(sl)] |= d2 <= r[k] ** 2
     else:
-        mc, mr = _midpoint_spheres(local, r, hs)
-        algorithm = midpoint_algorithm or midpoint_choice(mr, sub[0] * sub[1] * sub[2])
+        mc, mr = midpoint_spheres(local, r, hs)
+        algorithm = midpoint_algorithm or _midpoint_algorithm(mr, sub[0] * sub[1] * sub[2])
         if algorithm == 1:
             for k in range(len(mr)):
                 pts = midpoint_sphere_offsets(int(mr[k])) + mc[k]

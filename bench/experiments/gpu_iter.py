@@ -7,17 +7,16 @@ import sys
 import numpy as np
 import warp as wp
 
+from warp_lamp.bench import lattice_grid, time_bvh, time_lamp
+from warp_lamp.scenes import scene_lattice_box
+
 wp.config.log_level = wp.LOG_WARNING
-wp.init()
-sys.path.insert(0, ".")
-from warp_lamp.bench import _lattice_grid, time_bvh, time_lamp  # noqa: E402
-from warp_lamp.scenes import scene_lattice_box  # noqa: E402
 
 dev = wp.get_device("cuda:0")
 rows = []
 for m in [int(x) for x in (sys.argv[1:] or ["100", "200"])]:
     scene = scene_lattice_box(m)
-    grid = _lattice_grid(scene, 0.25)
+    grid = lattice_grid(scene, 0.25)
     t = time_lamp(scene, grid, 1, dev, repeats=50)
     if m <= 100:
         t.update(time_bvh(scene, grid, dev, repeats=20))

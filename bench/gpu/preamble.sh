@@ -1,0 +1,12 @@
+# Sourced by every lease script: logs and JSON to $OUT, the GPU named, carried wheels installed.
+# Usage on the device machine (after ../shared/gpu's stage-warp steps):  bash bench/gpu/<script>.sh
+set -o pipefail
+export PYTHONUNBUFFERED=1
+OUT="${OUT:-/tmp/out}"
+mkdir -p "$OUT"
+export PYTHONPATH="/root/site:$PWD${PYTHONPATH:+:$PYTHONPATH}"
+if compgen -G ".whl/*.whl" >/dev/null; then
+  # Optional test extras (overlap, newton, scipy) that the machine lacks, carried as wheels.
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /root/site .whl/*.whl
+fi
+nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv | tee "$OUT/gpu.txt"

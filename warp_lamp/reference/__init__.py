@@ -1,0 +1,28 @@
+"""Plain float64 NumPy references for the kernels, written for clarity rather than speed.
+
+The kernels decide in float32 (the lamp) or float64 (porosity). Where a float32 decision sits within rounding of a
+boundary, the lamp reference flags the cell as ambiguous, with a bound derived from float32's unit roundoff, and
+tests compare every other cell exactly.
+"""
+
+from warp_lamp.reference.lamp import EPS32, LampReference, lamp_reference
+from warp_lamp.reference.porosity import (
+    PAPER_TABLE_1,
+    midpoint_sphere_offsets,
+    midpoint_spheres,
+    octant_volume,
+    porosity_reference,
+    sphere_box_volume,
+)
+
+__all__ = [
+    "EPS32",
+    "PAPER_TABLE_1",
+    "LampReference",
+    "lamp_reference",
+    "midpoint_sphere_offsets",
+    "midpoint_spheres",
+    "octant_volume",
+    "porosity_reference",
+    "sphere_box_volume",
+]

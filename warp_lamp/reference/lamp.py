@@ -1,0 +1,126 @@
+"""Float64 reference of the shining lamp (criteria 0 and 1), written for clarity rather than speed.
+
+It decides every cell in float64. The kernels decide in float32, so where a decision sits
+within float32 rounding of a boundary (a cell centre on a sphere's silhouette, two depths within rounding of
+each other) the two may legitimately differ: the reference flags those cells as ambiguous, with a bound
+derived from float32's unit roundoff, and tests compare every other cell exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from warp_lamp.grid import LampGrid
+from warp_lamp.lamp import LAMPS, lamp_mask
+
+__all__ = ["EPS32", "LampReference", "lamp_reference"]
+
+#: Unit roundoff of float32.
+EPS32 = 2.0**-24
+
+
+@dataclass
+class LampReference:
+    """Reference answer. ``owners``, ``depths`` and ``ambiguous`` are per lamp name, indexed ``[i, j]``."""
+
+    owners: dict
+    depths: dict
+    ambiguous: dict
+    counts: np.ndarray
+
+
+def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_side: bool):
+    """Per-cell winner of one lamp, plus the ambiguity band. Spheres are visited in index order."""
+    u, v = (a + 1) % 3, (a + 2) % 3
+    (cu, cv), (hu, hv), (nu, nv) = grid.corner[a], grid.cell[a], grid.counts[a]
+    cu -= grid.origin[u]
+    cv -= grid.origin[v]
+    best = np.full((nu, nv), np.inf)
+    best_id = np.full((nu, nv), -1)
+    best_tol = np.zeros((nu, nv))
+    best_near = np.zeros((nu, nv), dtype=bool)
+    others_lo = np.full((nu, nv), np.inf)
+    for k in np.flatnonzero(visible):
+        pu, pv, pd, rk = local_c[k, u] - cu, local_c[k, v] - cv, local_c[k, a], r[k]
+        i0 = max(int(np.floor((pu - rk) / hu)) - 1, 0)
+        i1 = min(int(np.floor((pu + rk) / hu)) + 1, nu - 1)
+        j0 = max(int(np.floor((pv - rk) / hv)) - 1, 0)
+        j1 = min(int(np.floor((pv + rk) / hv)) + 1, nv - 1)
+        if i0 > i1 or j0 > j1:
+            continue
+        ii, jj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="ij")
+        if criterion == 1:
+            du = (ii + 0.5) * hu - pu
+            dv = (jj + 0.5) * hv - pv
+        else:
+            du = np.maximum(np.maximum(ii * hu - pu, pu - (ii + 1) * hu), 0.0)
+            dv = np.maximum(np.maximum(jj * hv - pv, pv - (jj + 1) * hv), 0.0)
+        d2 = du * du + dv * dv
+        # The kernels test du^2 <= r^2 - dv^2 in float32: the same criterion, rounded differently.
+        # Rounding of the float32 inputs and of each float32 operation on the way to d2 and r2.
+        scale_u = np.abs(ii + 1) * hu + abs(pu) + abs(local_c[k, u]) + abs(cu)
+        scale_v = np.abs(jj + 1) * hv + abs(pv) + abs(local_c[k, v]) + abs(cv)
+        err2 = 16 * EPS32 * (rk * rk + d2 + 2 * np.abs(du) * scale_u + 2 * np.abs(dv) * scale_v)
+        hit = d2 <= rk * rk
+        near = np.abs(d2 - rk * rk) <= err2
+        if criterion == 1:
+            s2 = np.maximum(rk * rk - d2, 0.0)
+            s = np.sqrt(s2)
+            depth = pd - s if lo_side else -(pd + s)
+            ds = np.where(s2 > err2, err2 / (2 * np.sqrt(np.maximum(s2, err2))), np.sqrt(err2))
+            tol = 8 * EPS32 * (abs(pd) + s) + 2 * ds
+        else:
+            depth = np.full(d2.shape, pd if lo_side else -pd)
+            tol = np.full(d2.shape, 8 * EPS32 * abs(pd))
+        sl = (slice(i0, i1 + 1), slice(j0, j1 + 1))
+        wins = hit & (depth < best[sl])
+        # A displaced winner, and every losing candidate or near miss, can still win under rounding if it
+        # comes within tolerance of the final winner: keep the lowest (depth - tol) of them.
+        displaced = wins & (best_id[sl] >= 0)
+        others_lo[sl] = np.where(displaced, np.minimum(others_lo[sl], best[sl] - best_tol[sl]), others_lo[sl])
+        loser = (hit | near) & ~wins
+        others_lo[sl] = np.where(loser, np.minimum(others_lo[sl], depth - tol), others_lo[sl])
+        best[sl] = np.where(wins, depth, best[sl])
+        best_id[sl] = np.where(wins, k, best_id[sl])
+        best_tol[sl] = np.where(wins, tol, best_tol[sl])
+        best_near[sl] = np.where(wins, near, best_near[sl])
+    lit = best_id >= 0
+    ambiguous = np.where(lit, best_near | (others_lo <= best + best_tol), np.isfinite(others_lo))
+    depth_global = (best if lo_side else -best) + grid.origin[a]
+    return best_id, np.where(lit, depth_global, np.nan), ambiguous
+
+
+def lamp_reference(centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None) -> LampReference:
+    """Owners, depths and signed counts of every lamp, in float64, by brute force over spheres and cells.
+
+    Args:
+        centers: Particle centres [m], shape (N, 3).
+        radii: Particle radii [m], shape (N,).
+        grid: The lamp grids.
+        criterion: 1 (cell-centre ray) or 0 (cell rectangle meets the projected disk).
+        lamps: "all" or names from :data:`warp_lamp.LAMPS`.
+        active: Optional mask, shape (N,); inactive particles are left out.
+    """
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    n = len(r)
+    visible = np.ones(n, dtype=bool) if active is None else np.asarray(active) != 0
+    local_c = c - grid.origin
+    mask = lamp_mask(lamps)
+    owners, depths, ambiguous = {}, {}, {}
+    counts = np.zeros((n, 3), dtype=np.int64)
+    for a in range(3):
+        for side in range(2):
+            name = LAMPS[2 * a + side]
+            shape = tuple(int(x) for x in grid.counts[a])
+            if not mask >> (2 * a + side) & 1:
+                owners[name] = np.full(shape, -1)
+                depths[name] = np.full(shape, np.nan)
+                ambiguous[name] = np.zeros(shape, dtype=bool)
+                continue
+            own, dep, amb = _lamp_cells(local_c, r, visible, grid, a, criterion, side == 0)
+            owners[name], depths[name], ambiguous[name] = own, dep, amb
+            np.add.at(counts[:, a], own[own >= 0], 1 if side == 0 else -1)
+    return LampReference(owners, depths, ambiguous, counts)
