@@ -132,6 +132,21 @@ class LampDiagnostics:
     moment_origin: np.ndarray | None = None
 
 
+#: Threads the depth pass aims for when it splits a small body's footprints: about what an H100 holds resident
+#: (132 SMs x 2048).
+_TARGET_THREADS = 1 << 18
+#: Most threads per (sphere, axis): a footprint of 16 cells per diameter spans about 25 blocks.
+_MAX_SPLIT = 16
+
+
+def _auto_split(n: int, device) -> int:
+    """Threads per (sphere, axis) for n particles: 1 on the CPU (one thread runs the launch anyway), else enough
+    to bring 3 n up to about the threads a GPU holds resident."""
+    if not device.is_cuda or n == 0:
+        return 1
+    return int(min(_MAX_SPLIT, max(1, -(-_TARGET_THREADS // (3 * n)))))
+
+
 class ShiningLamp:
     """Shining-lamp pressure boundary for Warp particle simulators: arrays in, forces added in place.
 
@@ -147,7 +162,17 @@ class ShiningLamp:
     subset (``lamps``), the balance holds only on axes whose two lamps are both on.
     """
 
-    def __init__(self, grid: LampGrid, *, criterion: int = 1, lamps="all", device=None):
+    def __init__(
+        self,
+        grid: LampGrid,
+        *,
+        criterion: int = 1,
+        lamps="all",
+        device=None,
+        split: int | str = "auto",
+        culling: bool = True,
+        depth_pass: str = "blocks",
+    ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
         Args:
@@ -157,17 +182,32 @@ class ShiningLamp:
                 (depth of the sphere centre on both sides). The memo's ``sl_ic``.
             lamps: "all", or names from :data:`LAMPS`.
             device: Warp device; the current default when None.
+            split: Threads that share each (sphere, axis) of the depth pass, or ``"auto"``: enough to fill a GPU
+                with a small body (from the particle count, fixed when room is made for them), 1 on the CPU.
+            culling: Skip 4 x 4 blocks of cells where a sphere is hidden, after one load per lamp (a coarse depth
+                buffer built after the seed). The result does not depend on it.
+            depth_pass: ``"blocks"``, or ``"rows"``: the previous depth pass (one thread per sphere, row filter),
+                kept so that the benchmark can time both in one run; it ignores ``split`` and ``culling``.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+        if depth_pass not in ("blocks", "rows"):
+            raise ValueError(f"depth_pass: expected 'blocks' or 'rows', got {depth_pass!r}")
+        if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 1):
+            raise ValueError(f"split: expected 'auto' or an integer >= 1, got {split!r}")
         self.grid = grid
         self.criterion = _check_criterion(criterion)
         self.lamp_mask = lamp_mask(lamps)
         self.device = wp.get_device(device)
+        self.depth_pass = depth_pass
+        self._split = split
+        self.split = 1
         self._params = {False: grid.params(), True: grid.params(in_frame=True)}
         self._area = wp.vec3d(*grid.cell_area)
         d = self.device
         self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
+        use_blocks = bool(culling) and depth_pass == "blocks"
+        self.blocks = wp.zeros(2 * grid.n_blocks if use_blocks else 0, dtype=wp.uint64, device=d)
         self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -176,14 +216,16 @@ class ShiningLamp:
         self._inputs = None
 
     def reserve(self, n: int) -> None:
-        """Make room for ``n`` particles now, so that a later captured update need not allocate."""
+        """Make room for ``n`` particles now, so that a later captured update need not allocate; this also fixes
+        the depth pass's ``split`` for them."""
         if 3 * n > self.counts.shape[0]:
-            if self.device.is_cuda and self.device.is_capturing:
+            if self.device.is_capturing:
                 raise RuntimeError(
                     f"positions: {n} particles exceed the {self.counts.shape[0] // 3} reserved; call "
                     "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
+            self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
@@ -238,7 +280,8 @@ class ShiningLamp:
     # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
+        """Update step 1: clear the counts, re-evaluate each cell's last owner at the current positions, and
+        summarise the seeded keys per block for culling."""
         grid, particles = self._inputs
         d = self.device
         wp.launch(
@@ -251,20 +294,38 @@ class ShiningLamp:
         wp.launch(
             lamp_kernels.lamp_seed,
             dim=self.grid.n_cells,
-            inputs=[grid, particles, self.criterion],
+            inputs=[grid, particles, self.criterion, 1],
             outputs=[self.keys],
             device=d,
         )
+        if self.blocks.shape[0]:
+            wp.launch(
+                lamp_kernels.lamp_blocks,
+                dim=self.grid.n_blocks,
+                inputs=[grid, self.keys, 1],
+                outputs=[self.blocks],
+                device=d,
+            )
 
     def launch_depth(self) -> None:
-        """Update step 2: every sphere offers its depth to every cell it covers (one thread per sphere)."""
+        """Update step 2: every sphere offers its depth to every cell it covers."""
         grid, particles = self._inputs
         if self.n == 0:
             return
+        if self.depth_pass == "rows":
+            wp.launch(
+                lamp_kernels.lamp_depth_rows,
+                dim=self.n,
+                inputs=[grid, particles, self.criterion, self.lamp_mask],
+                outputs=[self.keys, self.diag],
+                device=self.device,
+                block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
+            )
+            return
         wp.launch(
             lamp_kernels.lamp_depth,
-            dim=self.n,
-            inputs=[grid, particles, self.criterion, self.lamp_mask],
+            dim=3 * self.split * self.n,
+            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self.blocks],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,

@@ -9,8 +9,8 @@ one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. 
 import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
-from warp_lamp.kernels.grid import LampGridParams, grid_cell
-from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
+from warp_lamp.kernels.grid import BLOCK, LampGridParams, grid_block, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, LOW_WORD, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -19,6 +19,10 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False, "optimization
 #: Threads per block of the depth pass: 128 beat 256 by 7-9% on an H200 once the row filter issues its loads
 #: in chunks (bench/NOTES.md v4).
 DEPTH_BLOCK_DIM = 128
+
+#: Most keys a sample keeps per lamp (``depth_slots``): the first D spheres along its ray.
+MAX_SLOTS = 4
+SlotKeys = wp.types.vector(length=MAX_SLOTS, dtype=wp.uint64)
 
 #: Slots of the diagnostics counter array.
 DIAG_INVALID = wp.constant(0)
@@ -84,6 +88,28 @@ def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
 
 
 @wp.func
+def offer_slots(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key: wp.uint64):
+    """Keep the ``depth_slots`` smallest distinct keys offered to keys[base ... base + D - 1], in ascending order.
+
+    Read the last slot first: an offer that cannot enter costs a load. Otherwise a chain of atomic_min: the loser of
+    each exchange moves down to the next slot. A slot's value only decreases, so each slot ends as the minimum of
+    what was pushed into it, which makes the result the D smallest keys in order, under any interleaving. An
+    exchange that finds its own key already there stops: an offer the seed already placed, or a duplicate that
+    a concurrent push has not yet passed, is not kept twice.
+    """
+    if key >= keys[base + depth_slots - 1]:
+        return
+    k = key
+    for slot in range(depth_slots):
+        old = wp.atomic_min(keys, base + slot, k)
+        if old == k:
+            return
+        k = wp.max(old, k)
+        if k == EMPTY_KEY:
+            return
+
+
+@wp.func
 def row_live(keys: wp.array[wp.uint64], row: wp.int32, c0: wp.int32, c1: wp.int32, lo: wp.uint64, hi: wp.uint64):
     """Bit 0: some low key of cells c0..c1 is >= lo; bit 1: some high key is >= hi.
 
@@ -130,42 +156,63 @@ def lamp_clear(
         diag[t] = 0
 
 
+@wp.func
+def owner_key(
+    grid: LampGridParams, particles: LampParticles, cell: wp.vec3i, side: wp.int32, owner: wp.int32, criterion: wp.int32
+) -> wp.uint64:
+    """The key that particle ``owner`` offers to lamp ``side`` of ``cell`` (a, i, j) at the current positions, or
+    EMPTY_KEY where it no longer lights the cell: the depth pass's own decision, through the same functions."""
+    sphere = frame_sphere(grid, particles, owner)
+    if not sphere.casts:
+        return EMPTY_KEY
+    a = cell[0]
+    r = sphere.radius
+    dv = cell_offset(cell[2], grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
+    du = cell_offset(cell[1], grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
+    rem = r * r - dv * dv
+    if rem < 0.0 or du * du > rem:
+        return EMPTY_KEY
+    reach = lamp_reach(rem, du, criterion)
+    if side == 0:
+        return pack_key(sphere.center[a] - reach, owner)
+    return pack_key(-(sphere.center[a] + reach), owner)
+
+
 @wp.kernel
 def lamp_seed(
     grid: LampGridParams,
     particles: LampParticles,
     criterion: wp.int32,
+    depth_slots: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
 ):
-    """One thread per cell replaces each lamp's key with its last owner's key at the current positions (or
-    EMPTY where that owner no longer lights the cell).
+    """One thread per cell replaces each lamp's kept keys with their owners' keys at the current positions (EMPTY
+    where an owner no longer lights the cell), re-sorted.
 
-    The seed is one of the offers the depth pass makes anyway, so the final atomic minimum is unchanged; but it
-    is nearly always the winner already, so the depth pass then finds almost every row decided and issues
-    almost no atomics. This replaces clearing the keys.
+    The seed keys are offers the depth pass makes anyway, so the final result is unchanged; but they are nearly
+    always the winners already, so the depth pass then finds almost every cell decided and issues almost no
+    atomics. This replaces clearing the keys.
     """
     c = wp.tid()
     cell = grid_cell(grid, c)
-    a = cell[0]
     for side in range(2):
-        key = keys[2 * c + side]
-        if key != EMPTY_KEY:
-            owner = key_owner(key)
-            sphere = frame_sphere(grid, particles, owner)
-            key = EMPTY_KEY
-            if sphere.casts:
-                r = sphere.radius
-                dv = cell_offset(cell[2], grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
-                du = cell_offset(cell[1], grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
-                rem = r * r - dv * dv
-                if rem >= 0.0 and du * du <= rem:
-                    reach = lamp_reach(rem, du, criterion)
-                    if side == 0:
-                        key = pack_key(sphere.center[a] - reach, owner)
-                    else:
-                        key = pack_key(-(sphere.center[a] + reach), owner)
-            keys[2 * c + side] = key
+        base = (2 * c + side) * depth_slots
+        kept = SlotKeys()
+        for slot in range(depth_slots):
+            key = keys[base + slot]
+            if key != EMPTY_KEY:
+                key = owner_key(grid, particles, cell, side, key_owner(key), criterion)
+            # Insertion into the ascending prefix: the owners are distinct, so their keys are too.
+            k = slot
+            while k > 0:
+                if kept[k - 1] <= key:
+                    break
+                kept[k] = kept[k - 1]
+                k -= 1
+            kept[k] = key
+        for slot in range(depth_slots):
+            keys[base + slot] = kept[slot]
 
 
 @wp.kernel
@@ -177,7 +224,7 @@ def lamp_forget(
 
 
 @wp.kernel
-def lamp_depth(
+def lamp_depth_rows(
     grid: LampGridParams,
     particles: LampParticles,
     criterion: wp.int32,
@@ -186,8 +233,9 @@ def lamp_depth(
     keys: wp.array[wp.uint64],
     diag: wp.array[wp.int32],
 ):
-    """One thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk
-    covers, on the three grids, with atomic_min: the order of offers cannot change the result."""
+    """v4 of the depth pass (bench/NOTES.md), kept as the benchmark's baseline while issue 11's blocks replace it:
+    one thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk covers,
+    on the three grids, with atomic_min (one slot per lamp), skipping rows whose stored keys all beat it."""
     particle = wp.tid()
     sphere = frame_sphere(grid, particles, particle)
     if not sphere.casts:
@@ -240,6 +288,163 @@ def lamp_depth(
                         offer(keys, slot + 1, pack_key(-(pd + depth), particle))
     if outside != 0:
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
+
+
+@wp.func
+def lamp_outside(grid: LampGridParams, sphere: FrameSphere, lamp_mask: wp.int32) -> wp.bool:
+    """Whether the sphere's projected disk pokes outside a grid whose lamps are on."""
+    r = sphere.radius
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) != 0:
+            pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+            pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+            if pu - r < 0.0 or pv - r < 0.0:
+                return True
+            if pu + r > grid.h_u[a] * float(grid.n_u[a]) or pv + r > grid.h_v[a] * float(grid.n_v[a]):
+                return True
+    return False
+
+
+@wp.kernel
+def lamp_blocks(
+    grid: LampGridParams,
+    keys: wp.array[wp.uint64],
+    depth_slots: wp.int32,
+    # outputs
+    blocks: wp.array[wp.uint64],
+):
+    """One thread per 4 x 4 block of cells summarises each lamp's keys after the seed: the largest depth bits of
+    its cells' last kept keys (slot D - 1) in the high word, a 16-bit mask of cells whose last slot is empty in the
+    low word. Keys only fall during the depth pass, so the summary stays an upper bound: a sphere whose best
+    depth over its cells in the block loses to it, and covers no empty cell there, can skip the block."""
+    b = wp.tid()
+    blk = grid_block(grid, b)
+    a = blk[0]
+    for side in range(2):
+        worst = wp.uint64(0)
+        empty = int(0)
+        for jj in range(BLOCK):
+            j = BLOCK * blk[2] + jj
+            for ii in range(BLOCK):
+                i = BLOCK * blk[1] + ii
+                if i < grid.n_u[a] and j < grid.n_v[a]:
+                    c = grid.offset[a] + j * grid.n_u[a] + i
+                    k = keys[(2 * c + side) * depth_slots + depth_slots - 1]
+                    if k == EMPTY_KEY:
+                        empty = empty | (1 << (BLOCK * jj + ii))
+                    else:
+                        worst = wp.max(worst, k >> wp.uint64(32))
+        blocks[2 * b + side] = (worst << wp.uint64(32)) | wp.uint64(empty)
+
+
+@wp.kernel
+def lamp_depth(
+    grid: LampGridParams,
+    particles: LampParticles,
+    criterion: wp.int32,
+    lamp_mask: wp.int32,
+    split: wp.int32,
+    depth_slots: wp.int32,
+    blocks: wp.array[wp.uint64],
+    # outputs
+    keys: wp.array[wp.uint64],
+    diag: wp.array[wp.int32],
+):
+    """The depth pass: every sphere offers (depth, id) keys to the low and high lamp of every cell its projected
+    disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
+
+    Work goes in 4 x 4 blocks of cells: ``split`` threads share each (sphere, axis) and take its blocks in turn
+    (thread t: particle t % n, axis and share from t / n, so a warp holds neighbouring particles). A block's hit
+    mask comes from 4 row and 4 column offsets in registers; with ``blocks`` (the summaries of ``lamp_blocks``)
+    a hidden sphere leaves a block after one load per lamp instead of one per cell.
+    """
+    t = wp.tid()
+    n = particles.n
+    particle = t % n
+    share = t / n
+    a = share / split
+    g = share - a * split
+    sphere = frame_sphere(grid, particles, particle)
+    if not sphere.casts:
+        if share == 0 and not inactive(particles, particle):
+            wp.atomic_add(diag, DIAG_INVALID, 1)
+        return
+    if share == 0 and lamp_outside(grid, sphere, lamp_mask):
+        wp.atomic_add(diag, DIAG_OUTSIDE, 1)
+    lamp_bits = (lamp_mask >> (2 * a)) & 3
+    if lamp_bits == 0:
+        return
+    r = sphere.radius
+    r2 = r * r
+    pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+    pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+    pd = sphere.center[a]
+    hu = grid.h_u[a]
+    hv = grid.h_v[a]
+    nu = grid.n_u[a]
+    rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
+    cols = cell_span(pu - r, pu + r, hu, nu, criterion)
+    if rows[0] > rows[1] or cols[0] > cols[1]:
+        return
+    bi0 = cols[0] / BLOCK
+    bj0 = rows[0] / BLOCK
+    nbi = cols[1] / BLOCK - bi0 + 1
+    nb = nbi * (rows[1] / BLOCK - bj0 + 1)
+    culling = blocks.shape[0] > 0
+    for b in range(g, nb, split):
+        bj = bj0 + b / nbi
+        bi = bi0 + b - (b / nbi) * nbi
+        rem = wp.vec4(-1.0)
+        du = wp.vec4(0.0)
+        du2 = wp.vec4(0.0)
+        for k in range(BLOCK):
+            j = BLOCK * bj + k
+            if j >= rows[0] and j <= rows[1]:
+                dv = cell_offset(j, hv, pv, criterion)
+                rem[k] = r2 - dv * dv
+            i = BLOCK * bi + k
+            du[k] = cell_offset(i, hu, pu, criterion)
+            du2[k] = du[k] * du[k]
+            if i < cols[0] or i > cols[1]:
+                du2[k] = 3.0e38
+        mask = int(0)
+        best = float(-1.0)
+        for jj in range(BLOCK):
+            for ii in range(BLOCK):
+                if rem[jj] >= 0.0 and du2[ii] <= rem[jj]:
+                    mask = mask | (1 << (BLOCK * jj + ii))
+                    best = wp.max(best, rem[jj] - du2[ii])
+        if mask == 0:
+            continue
+        live = lamp_bits
+        if culling:
+            # No cell of the block can take a depth below pd - reach (low) or above pd + reach (high): sqrt and
+            # subtraction are monotone, and best is the largest rem - du^2 the cells compute themselves.
+            reach = lamp_reach(best, 0.0, criterion)
+            bidx = grid.block_offset[a] + bj * grid.nb_u[a] + bi
+            low = blocks[2 * bidx]
+            high = blocks[2 * bidx + 1]
+            live = 0
+            if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (
+                pack_key(pd - reach, 0) >> wp.uint64(32)
+            ):
+                live = 1
+            if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= (
+                pack_key(-(pd + reach), 0) >> wp.uint64(32)
+            ):
+                live = live | 2
+            live = live & lamp_bits
+            if live == 0:
+                continue
+        for jj in range(BLOCK):
+            for ii in range(BLOCK):
+                if (mask & (1 << (BLOCK * jj + ii))) != 0:
+                    depth = lamp_reach(rem[jj], du[ii], criterion)
+                    c = grid.offset[a] + (BLOCK * bj + jj) * nu + BLOCK * bi + ii
+                    if (live & 1) != 0:
+                        offer_slots(keys, 2 * c * depth_slots, depth_slots, pack_key(pd - depth, particle))
+                    if (live & 2) != 0:
+                        offer_slots(keys, (2 * c + 1) * depth_slots, depth_slots, pack_key(-(pd + depth), particle))
 
 
 @wp.kernel
