@@ -126,25 +126,25 @@ def test_cpu_and_cuda_bitwise_equal(cuda_device, rng, criterion):
 
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
-    """The block depth pass, with any split of its work and with culling on or off, leaves bitwise the keys and
-    counts of the previous (row) pass, also warm-started from other positions."""
+    """However the depth pass shares out its work (one thread per sphere, or 1, 3 or 16 per sphere and axis) and
+    with culling on or off, it leaves bitwise the same keys, counts and counters, also warm-started elsewhere."""
     centers, radii = polydisperse_scene(rng, n=400, extent=6.0, rmin=0.05, rmax=0.8)
     moved = centers + rng.normal(scale=0.05, size=centers.shape)
     for cells_per_diameter in (1.5, 7.0):
         grid = wl.LampGrid.enclosing(centers, radii, cells_per_diameter=cells_per_diameter)
         pos, rad = device_arrays(centers - grid.origin, radii, device)
         other, _ = device_arrays(moved - grid.origin, radii, device)
-        rows = wl.ShiningLamp(grid, criterion=criterion, depth_pass="rows", device=device)
-        rows.update(pos, rad, in_frame=True)
-        for split in (1, 3, 16):
+        plain = wl.ShiningLamp(grid, criterion=criterion, split=0, culling=False, device=device)
+        plain.update(pos, rad, in_frame=True)
+        for split in (0, 1, 3, 16):
             for culling in (True, False):
                 lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, culling=culling, device=device)
                 lamp.update(other, rad, in_frame=True)
                 lamp.update(pos, rad, in_frame=True)
-                assert lamp.split == split
-                np.testing.assert_array_equal(lamp.keys.numpy(), rows.keys.numpy())
-                np.testing.assert_array_equal(lamp.counts_numpy(), rows.counts_numpy())
-                np.testing.assert_array_equal(lamp.diag.numpy(), rows.diag.numpy())
+                assert (lamp.split, lamp.culling) == (split, culling)
+                np.testing.assert_array_equal(lamp.keys.numpy(), plain.keys.numpy())
+                np.testing.assert_array_equal(lamp.counts_numpy(), plain.counts_numpy())
+                np.testing.assert_array_equal(lamp.diag.numpy(), plain.diag.numpy())
 
 
 # --- hard cases -------------------------------------------------------------------------------------------

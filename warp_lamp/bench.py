@@ -95,11 +95,12 @@ def lattice_grid(scene: Scene, cell: float) -> LampGrid:
     return LampGrid(lo, hi, cell)
 
 
-def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: int) -> dict:
+def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: int, **lamp_options) -> dict:
     """Cold update, warm eager update, graph replay and moving body (CUDA), and the update's steps, for one scene
-    and grid. Positions go in frame coordinates (subtracted in float64), as :func:`lamp_forces` passes them."""
+    and grid. Positions go in frame coordinates (subtracted in float64), as :func:`lamp_forces` passes them.
+    ``lamp_options`` go to :class:`ShiningLamp`."""
     n = scene.n
-    lamp = ShiningLamp(grid, criterion=criterion, device=device)
+    lamp = ShiningLamp(grid, criterion=criterion, device=device, **lamp_options)
     pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
     forces = wp.zeros(n, dtype=wp.vec3, device=device)

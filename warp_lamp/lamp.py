@@ -140,11 +140,18 @@ _MAX_SPLIT = 16
 
 
 def _auto_split(n: int, device) -> int:
-    """Threads per (sphere, axis) for n particles: 1 on the CPU (one thread runs the launch anyway), else enough
-    to bring 3 n up to about the threads a GPU holds resident."""
-    if not device.is_cuda or n == 0:
-        return 1
+    """The depth pass's split for n particles: 0 (one thread per sphere) on the CPU, where one thread runs the
+    launch anyway, and for bodies that fill a GPU by themselves; else enough threads per (sphere, axis) to bring
+    the launch up to about what a GPU holds resident."""
+    if not device.is_cuda or n == 0 or n >= _TARGET_THREADS:
+        return 0
     return int(min(_MAX_SPLIT, max(1, -(-_TARGET_THREADS // (3 * n)))))
+
+
+def _auto_culling(split: int, device) -> bool:
+    """Culling for the one-thread-per-sphere pass on a GPU only: where a (sphere, axis) is split, each share would
+    repeat the coarse check, and on the CPU the check costs more than the row filter it saves."""
+    return device.is_cuda and split == 0
 
 
 class ShiningLamp:
@@ -170,8 +177,7 @@ class ShiningLamp:
         lamps="all",
         device=None,
         split: int | str = "auto",
-        culling: bool = True,
-        depth_pass: str = "blocks",
+        culling: bool | str = "auto",
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -182,32 +188,35 @@ class ShiningLamp:
                 (depth of the sphere centre on both sides). The memo's ``sl_ic``.
             lamps: "all", or names from :data:`LAMPS`.
             device: Warp device; the current default when None.
-            split: Threads that share each (sphere, axis) of the depth pass, or ``"auto"``: enough to fill a GPU
-                with a small body (from the particle count, fixed when room is made for them), 1 on the CPU.
-            culling: Skip 4 x 4 blocks of cells where a sphere is hidden, after one load per lamp (a coarse depth
-                buffer built after the seed). The result does not depend on it.
-            depth_pass: ``"blocks"``, or ``"rows"``: the previous depth pass (one thread per sphere, row filter),
-                kept so that the benchmark can time both in one run; it ignores ``split`` and ``culling``.
+            split: How the depth pass shares out its work: 0, one thread per sphere for its three axes (the v4
+                pass of ``bench/NOTES.md``); s >= 1, s threads per (sphere, axis), taking its rows in turn;
+                ``"auto"`` chooses from the particle count when room is made for them (:meth:`reserve`), so that a
+                small body still fills a GPU (0 on the CPU, where one thread runs the launch).
+            culling: Before walking its rows, a sphere asks a coarse depth buffer (4 x 4 blocks of cells, built
+                after the seed) which lamps it could reach at all, and stops where it is hidden. ``"auto"``
+                decides with ``split``. The result does not depend on ``split`` or ``culling``.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
-        if depth_pass not in ("blocks", "rows"):
-            raise ValueError(f"depth_pass: expected 'blocks' or 'rows', got {depth_pass!r}")
-        if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 1):
-            raise ValueError(f"split: expected 'auto' or an integer >= 1, got {split!r}")
+        if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
+            raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
+        if culling not in ("auto", True, False):
+            raise ValueError(f"culling: expected 'auto', True or False, got {culling!r}")
         self.grid = grid
         self.criterion = _check_criterion(criterion)
         self.lamp_mask = lamp_mask(lamps)
         self.device = wp.get_device(device)
-        self.depth_pass = depth_pass
         self._split = split
-        self.split = 1
+        self._culling = culling
+        self.split = 0
         self._params = {False: grid.params(), True: grid.params(in_frame=True)}
         self._area = wp.vec3d(*grid.cell_area)
         d = self.device
         self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        use_blocks = bool(culling) and depth_pass == "blocks"
-        self.blocks = wp.zeros(2 * grid.n_blocks if use_blocks else 0, dtype=wp.uint64, device=d)
+        # Allocated with the grid (its nbytes counts them); used when culling is on.
+        self.blocks = wp.zeros(2 * grid.n_blocks if culling else 0, dtype=wp.uint64, device=d)
+        self._no_blocks = wp.empty(0, dtype=wp.uint64, device=d)
+        self.culling = False
         self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -226,6 +235,7 @@ class ShiningLamp:
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
+            self.culling = bool(_auto_culling(self.split, self.device) if self._culling == "auto" else self._culling)
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
@@ -280,25 +290,18 @@ class ShiningLamp:
     # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, re-evaluate each cell's last owner at the current positions, and
-        summarise the seeded keys per block for culling."""
+        """Update step 1: clear the counts, re-evaluate each cell's last owners at the current positions, and (with
+        culling) summarise the seeded keys per block."""
         grid, particles = self._inputs
         d = self.device
         wp.launch(
-            lamp_kernels.lamp_clear,
-            dim=max(self.n, lamp_kernels.N_DIAG),
-            inputs=[self.n],
-            outputs=[self.counts, self.diag],
-            device=d,
-        )
-        wp.launch(
             lamp_kernels.lamp_seed,
-            dim=self.grid.n_cells,
+            dim=max(self.grid.n_cells, self.n, lamp_kernels.N_DIAG),
             inputs=[grid, particles, self.criterion, 1],
-            outputs=[self.keys],
+            outputs=[self.keys, self.counts, self.diag],
             device=d,
         )
-        if self.blocks.shape[0]:
+        if self.culling:
             wp.launch(
                 lamp_kernels.lamp_blocks,
                 dim=self.grid.n_blocks,
@@ -312,20 +315,10 @@ class ShiningLamp:
         grid, particles = self._inputs
         if self.n == 0:
             return
-        if self.depth_pass == "rows":
-            wp.launch(
-                lamp_kernels.lamp_depth_rows,
-                dim=self.n,
-                inputs=[grid, particles, self.criterion, self.lamp_mask],
-                outputs=[self.keys, self.diag],
-                device=self.device,
-                block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
-            )
-            return
         wp.launch(
             lamp_kernels.lamp_depth,
-            dim=3 * self.split * self.n,
-            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self.blocks],
+            dim=self.n * (3 * self.split if self.split else 1),
+            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._depth_blocks()],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
@@ -342,6 +335,9 @@ class ShiningLamp:
             outputs=[self.counts],
             device=self.device,
         )
+
+    def _depth_blocks(self) -> wp.array:
+        return self.blocks if self.culling else self._no_blocks
 
     def add_forces(self, forces: wp.array, pressure) -> None:
         """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.

@@ -1,4 +1,5 @@
-"""Issue 11 A/B: the v4 depth pass ("rows") against the block pass (splits, culling), one run, one device.
+"""Issue 11 A/B: the v4 depth pass (one thread per sphere, row filter) against shared rows (``split``) and the
+coarse depth buffer (``culling``), one run, one device.
 
 Every variant must reproduce the v4 keys and counts bitwise (checked); times are CUDA-event medians of captured
 graph replays: "replay" updates a static body (warm owners), "moving" alternates two position sets 1% of a radius
@@ -36,13 +37,15 @@ def scenes(quick):
 
 
 def variants(n, device):
-    yield "rows", {"depth_pass": "rows"}
-    yield "blocks s1 nocull", {"split": 1, "culling": False}
-    yield "blocks s1", {"split": 1}
+    yield "v4", {"split": 0, "culling": False}
+    yield "v4 cull", {"split": 0, "culling": True}
+    yield "s1", {"split": 1, "culling": False}
+    yield "s1 cull", {"split": 1, "culling": True}
     if n < 200_000:
         for s in (2, 4, 8, 16):
-            yield f"blocks s{s}", {"split": s}
-        yield f"blocks s{s} nocull", {"split": 16, "culling": False}
+            yield f"s{s}", {"split": s, "culling": False}
+        yield "s16 cull", {"split": 16, "culling": True}
+    yield "auto", {}
 
 
 def time_variant(scene, grid, options, device, repeats):

@@ -1,4 +1,8 @@
-"""Quick GPU iteration: the target rows only (lattice, cell 0.25, criterion 1), for kernel work between full runs."""
+"""Quick GPU iteration: the target rows only (lattice, cell 0.25, criterion 1), for kernel work between full runs.
+
+python bench/experiments/gpu_iter.py 100 200          # the default lamp
+python bench/experiments/gpu_iter.py --v4 100         # one thread per sphere, no culling (the v4 pass)
+"""
 
 import json
 import os
@@ -13,11 +17,13 @@ from warp_lamp.scenes import scene_lattice_box
 wp.config.log_level = wp.LOG_WARNING
 
 dev = wp.get_device("cuda:0")
+options = {"split": 0, "culling": False} if "--v4" in sys.argv else {}
+sizes = [int(x) for x in sys.argv[1:] if x != "--v4"] or [100, 200]
 rows = []
-for m in [int(x) for x in (sys.argv[1:] or ["100", "200"])]:
+for m in sizes:
     scene = scene_lattice_box(m)
     grid = lattice_grid(scene, 0.25)
-    t = time_lamp(scene, grid, 1, dev, repeats=50)
+    t = time_lamp(scene, grid, 1, dev, repeats=50, **options)
     if m <= 100:
         t.update(time_bvh(scene, grid, dev, repeats=20))
     t["n"] = scene.n

@@ -1,5 +1,5 @@
 """The lamp's share of a DEM cycle (examples/sphere_test.py, whole cycle in one CUDA graph), with the v4 depth pass
-("rows") and the block pass, at 2, 4, 8, 16 cells per diameter.
+and the automatic split, at 2, 4, 8, 16 cells per diameter.
 
     python bench/experiments/sphere_share.py --json out.json
 """
@@ -34,9 +34,9 @@ def main():
     device = wp.get_device("cuda:0")
     rows = []
     for k in args.cells:
-        for depth_pass in ("rows", "blocks"):
+        for depth_pass, options in (("v4", {"split": 0, "culling": False}), ("auto", {})):
             test = st.SphereTest(k, device=device)
-            test.lamp = wl.ShiningLamp(test.lamp.grid, depth_pass=depth_pass, device=device)
+            test.lamp = wl.ShiningLamp(test.lamp.grid, device=device, **options)
             test.lamp.reserve(test.n)
             for _ in range(4):
                 test.step()

@@ -8,5 +8,6 @@ python3 bench/experiments/sphere_share.py --json "$OUT/sphere_share.json" 2>&1 |
 if [ -d .old ]; then
   echo "== before the refactor (.old) =="; (cd .old && PYTHONPATH=/root/site:$PWD python3 bench/gpu_iter.py 100)
 fi
-echo "== after =="; python3 bench/experiments/gpu_iter.py 100
+echo "== after, v4 path =="; python3 bench/experiments/gpu_iter.py --v4 100
+echo "== after, default =="; python3 bench/experiments/gpu_iter.py 100
 echo "== summary =="; tail -2 "$OUT/pytest.log"

@@ -81,23 +81,26 @@ def frame_sphere(grid: LampGridParams, particles: LampParticles, particle: wp.in
 
 
 @wp.func
-def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
-    # Read before the atomic: a losing candidate costs a load instead of an L2 atomic round trip.
-    if key < keys[slot]:
-        wp.atomic_min(keys, slot, key)
+def key_slot(c: wp.int32, side: wp.int32, depth_slots: wp.int32) -> wp.int32:
+    """Index of the first of the ``depth_slots`` keys that lamp ``side`` (0 low, 1 high) of cell c keeps."""
+    return (2 * c + side) * depth_slots
 
 
 @wp.func
-def offer_slots(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key: wp.uint64):
+def offer(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key: wp.uint64):
     """Keep the ``depth_slots`` smallest distinct keys offered to keys[base ... base + D - 1], in ascending order.
 
-    Read the last slot first: an offer that cannot enter costs a load. Otherwise a chain of atomic_min: the loser of
-    each exchange moves down to the next slot. A slot's value only decreases, so each slot ends as the minimum of
-    what was pushed into it, which makes the result the D smallest keys in order, under any interleaving. An
-    exchange that finds its own key already there stops: an offer the seed already placed, or a duplicate that
-    a concurrent push has not yet passed, is not kept twice.
+    Read the last slot first: an offer that cannot enter costs a load instead of an L2 atomic round trip. With one
+    slot, one atomic_min whose result is not read (a fire-and-forget reduction). With D slots, a chain of
+    atomic_min: the loser of each exchange moves down to the next slot. A slot's value only decreases, so each slot
+    ends as the minimum of what was pushed into it, which makes the result the D smallest keys in order, under any
+    interleaving; an exchange that finds its own key already there stops, so an offer the seed placed, or a
+    duplicate, is not kept twice.
     """
     if key >= keys[base + depth_slots - 1]:
+        return
+    if depth_slots == 1:
+        wp.atomic_min(keys, base, key)
         return
     k = key
     for slot in range(depth_slots):
@@ -110,50 +113,37 @@ def offer_slots(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32
 
 
 @wp.func
-def row_live(keys: wp.array[wp.uint64], row: wp.int32, c0: wp.int32, c1: wp.int32, lo: wp.uint64, hi: wp.uint64):
-    """Bit 0: some low key of cells c0..c1 is >= lo; bit 1: some high key is >= hi.
+def row_live(
+    keys: wp.array[wp.uint64], c0: wp.int32, c1: wp.int32, depth_slots: wp.int32, lo: wp.uint64, hi: wp.uint64
+) -> wp.int32:
+    """Bit 0: some low key kept last (slot D - 1) in cells c0..c1 is >= lo; bit 1: some high key is >= hi.
 
     Four cells per step, all eight loads issued before the first compare: with almost no atomics left, the
     depth pass waits on L2 latency, and a warp that used each load in its own iteration stalled once per cell
     (measured: 26% off the warm depth pass, bench/NOTES.md v4). Indices past c1 re-read c1.
     """
+    last = depth_slots - 1
     live = int(0)
-    i = c0
-    while i <= c1:
-        s0 = row + 2 * i
-        s1 = row + 2 * wp.min(i + 1, c1)
-        s2 = row + 2 * wp.min(i + 2, c1)
-        s3 = row + 2 * wp.min(i + 3, c1)
+    c = c0
+    while c <= c1:
+        s0 = key_slot(c, 0, depth_slots) + last
+        s1 = key_slot(wp.min(c + 1, c1), 0, depth_slots) + last
+        s2 = key_slot(wp.min(c + 2, c1), 0, depth_slots) + last
+        s3 = key_slot(wp.min(c + 3, c1), 0, depth_slots) + last
         l0 = keys[s0]
-        h0 = keys[s0 + 1]
+        h0 = keys[s0 + depth_slots]
         l1 = keys[s1]
-        h1 = keys[s1 + 1]
+        h1 = keys[s1 + depth_slots]
         l2 = keys[s2]
-        h2 = keys[s2 + 1]
+        h2 = keys[s2 + depth_slots]
         l3 = keys[s3]
-        h3 = keys[s3 + 1]
+        h3 = keys[s3 + depth_slots]
         if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
             live = live | 1
         if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
             live = live | 2
-        i += 4
+        c += 4
     return live
-
-
-@wp.kernel
-def lamp_clear(
-    n_particles: wp.int32,
-    # outputs
-    counts: wp.array[wp.int32],
-    diag: wp.array[wp.int32],
-):
-    t = wp.tid()
-    if t < n_particles:
-        counts[3 * t] = 0
-        counts[3 * t + 1] = 0
-        counts[3 * t + 2] = 0
-    if t < diag.shape[0]:
-        diag[t] = 0
 
 
 @wp.func
@@ -186,18 +176,29 @@ def lamp_seed(
     depth_slots: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
+    counts: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
 ):
     """One thread per cell replaces each lamp's kept keys with their owners' keys at the current positions (EMPTY
     where an owner no longer lights the cell), re-sorted.
 
     The seed keys are offers the depth pass makes anyway, so the final result is unchanged; but they are nearly
     always the winners already, so the depth pass then finds almost every cell decided and issues almost no
-    atomics. This replaces clearing the keys.
+    atomics. This replaces clearing the keys. Threads past the cells also clear the particles' counts and the
+    diagnostics: one launch instead of two.
     """
     c = wp.tid()
+    if c < particles.n:
+        counts[3 * c] = 0
+        counts[3 * c + 1] = 0
+        counts[3 * c + 2] = 0
+    if c < diag.shape[0]:
+        diag[c] = 0
+    if c >= grid.n_cells:
+        return
     cell = grid_cell(grid, c)
     for side in range(2):
-        base = (2 * c + side) * depth_slots
+        base = key_slot(c, side, depth_slots)
         kept = SlotKeys()
         for slot in range(depth_slots):
             key = keys[base + slot]
@@ -221,73 +222,6 @@ def lamp_forget(
     keys: wp.array[wp.uint64],
 ):
     keys[wp.tid()] = EMPTY_KEY
-
-
-@wp.kernel
-def lamp_depth_rows(
-    grid: LampGridParams,
-    particles: LampParticles,
-    criterion: wp.int32,
-    lamp_mask: wp.int32,
-    # outputs
-    keys: wp.array[wp.uint64],
-    diag: wp.array[wp.int32],
-):
-    """v4 of the depth pass (bench/NOTES.md), kept as the benchmark's baseline while issue 11's blocks replace it:
-    one thread per sphere offers (depth, id) keys to the low and high lamp of every cell its projected disk covers,
-    on the three grids, with atomic_min (one slot per lamp), skipping rows whose stored keys all beat it."""
-    particle = wp.tid()
-    sphere = frame_sphere(grid, particles, particle)
-    if not sphere.casts:
-        if not inactive(particles, particle):
-            wp.atomic_add(diag, DIAG_INVALID, 1)
-        return
-    r = sphere.radius
-    r2 = r * r
-    outside = int(0)
-    for a in range(3):
-        lamp_bits = (lamp_mask >> (2 * a)) & 3
-        if lamp_bits == 0:
-            continue
-        pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-        pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-        pd = sphere.center[a]
-        hu = grid.h_u[a]
-        hv = grid.h_v[a]
-        nu = grid.n_u[a]
-        nv = grid.n_v[a]
-        if pu - r < 0.0 or pv - r < 0.0 or pu + r > hu * float(nu) or pv + r > hv * float(nv):
-            outside = 1
-        rows = cell_span(pv - r, pv + r, hv, nv, criterion)
-        for j in range(rows[0], rows[1] + 1):
-            # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
-            # of cells and the span from w = sqrt(rem) brackets it.
-            dv = cell_offset(j, hv, pv, criterion)
-            rem = r2 - dv * dv
-            if rem < 0.0:
-                continue
-            w = wp.sqrt(rem)
-            cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-            row = 2 * (grid.offset[a] + j * nu)
-            # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
-            # in float32 (sqrt and subtraction are monotone). Where every stored key already beats that bound,
-            # the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
-            reach = lamp_reach(rem, 0.0, criterion)
-            live = row_live(keys, row, cols[0], cols[1], pack_key(pd - reach, 0), pack_key(-(pd + reach), 0))
-            live = live & lamp_bits
-            if live == 0:
-                continue
-            for i in range(cols[0], cols[1] + 1):
-                du = cell_offset(i, hu, pu, criterion)
-                if du * du <= rem:
-                    depth = lamp_reach(rem, du, criterion)
-                    slot = row + 2 * i
-                    if (live & 1) != 0:
-                        offer(keys, slot, pack_key(pd - depth, particle))
-                    if (live & 2) != 0:
-                        offer(keys, slot + 1, pack_key(-(pd + depth), particle))
-    if outside != 0:
-        wp.atomic_add(diag, DIAG_OUTSIDE, 1)
 
 
 @wp.func
@@ -329,12 +263,106 @@ def lamp_blocks(
                 i = BLOCK * blk[1] + ii
                 if i < grid.n_u[a] and j < grid.n_v[a]:
                     c = grid.offset[a] + j * grid.n_u[a] + i
-                    k = keys[(2 * c + side) * depth_slots + depth_slots - 1]
+                    k = keys[key_slot(c, side, depth_slots) + depth_slots - 1]
                     if k == EMPTY_KEY:
                         empty = empty | (1 << (BLOCK * jj + ii))
                     else:
                         worst = wp.max(worst, k >> wp.uint64(32))
         blocks[2 * b + side] = (worst << wp.uint64(32)) | wp.uint64(empty)
+
+
+@wp.func
+def block_hits(
+    rem: wp.vec4, bi: wp.int32, cols: wp.vec2i, hu: wp.float32, pu: wp.float32, criterion: wp.int32
+) -> wp.vec2:
+    """(mask, best) of block column bi for a block row whose 4 rows have remainders ``rem`` (r^2 - dv^2, < 0 for
+    rows the sphere misses): bit 4 jj + ii of the mask is set where the sphere lights cell (ii, jj) of the block,
+    exactly as the row loop decides it, and best is the largest rem - du^2 over those cells (a 16-bit mask is exact
+    in a float32)."""
+    mask = int(0)
+    best = float(-1.0)
+    for ii in range(BLOCK):
+        i = BLOCK * bi + ii
+        if i >= cols[0] and i <= cols[1]:
+            du = cell_offset(i, hu, pu, criterion)
+            du2 = du * du
+            for jj in range(BLOCK):
+                if rem[jj] >= 0.0 and du2 <= rem[jj]:
+                    mask = mask | (1 << (BLOCK * jj + ii))
+                    best = wp.max(best, rem[jj] - du2)
+    return wp.vec2(float(mask), best)
+
+
+@wp.func
+def block_live(hits: wp.vec2, low: wp.uint64, high: wp.uint64, pd: wp.float32, criterion: wp.int32) -> wp.int32:
+    """Which lamps (bit 0 low, bit 1 high) of a block could take an offer from a sphere whose hits there are
+    ``hits``, given the block's summaries (``lamp_blocks``): one that covers an empty cell of the block, or whose
+    best depth there does not lose to the block's worst kept key (ties keep it live)."""
+    mask = int(hits[0])
+    if mask == 0:
+        return 0
+    # No lit cell's depth is below pd - reach (low) or above pd + reach (high): sqrt and subtraction are monotone,
+    # and hits[1] is the largest rem - du^2 that those cells compute themselves.
+    reach = lamp_reach(hits[1], 0.0, criterion)
+    live = int(0)
+    if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (pack_key(pd - reach, 0) >> wp.uint64(32)):
+        live = 1
+    bound = pack_key(-(pd + reach), 0) >> wp.uint64(32)
+    if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= bound:
+        live = live | 2
+    return live
+
+
+@wp.func
+def blocks_live(
+    grid: LampGridParams,
+    blocks: wp.array[wp.uint64],
+    a: wp.int32,
+    pu: wp.float32,
+    pv: wp.float32,
+    pd: wp.float32,
+    r2: wp.float32,
+    rows: wp.vec2i,
+    cols: wp.vec2i,
+    criterion: wp.int32,
+    lamp_bits: wp.int32,
+) -> wp.int32:
+    """The lamps of axis a (bits as ``lamp_bits``) that could take an offer from the sphere anywhere: 0 when the
+    coarse depth buffer hides it everywhere. Four blocks per step, their eight summary loads issued together, and
+    done as soon as both lamps are found live."""
+    hu = grid.h_u[a]
+    bi1 = cols[1] / BLOCK
+    live = int(0)
+    for bj in range(rows[0] / BLOCK, rows[1] / BLOCK + 1):
+        rem = wp.vec4(-1.0)
+        for k in range(BLOCK):
+            j = BLOCK * bj + k
+            if j >= rows[0] and j <= rows[1]:
+                dv = cell_offset(j, grid.h_v[a], pv, criterion)
+                rem[k] = r2 - dv * dv
+        first = grid.block_offset[a] + bj * grid.nb_u[a]
+        bi = cols[0] / BLOCK
+        while bi <= bi1:
+            # Past the last block column, re-read the last one: a repeat cannot change the answer.
+            b1 = wp.min(bi + 1, bi1)
+            b2 = wp.min(bi + 2, bi1)
+            b3 = wp.min(bi + 3, bi1)
+            l0 = blocks[2 * (first + bi)]
+            h0 = blocks[2 * (first + bi) + 1]
+            l1 = blocks[2 * (first + b1)]
+            h1 = blocks[2 * (first + b1) + 1]
+            l2 = blocks[2 * (first + b2)]
+            h2 = blocks[2 * (first + b2) + 1]
+            l3 = blocks[2 * (first + b3)]
+            h3 = blocks[2 * (first + b3) + 1]
+            live = live | block_live(block_hits(rem, bi, cols, hu, pu, criterion), l0, h0, pd, criterion)
+            live = live | block_live(block_hits(rem, b1, cols, hu, pu, criterion), l1, h1, pd, criterion)
+            live = live | block_live(block_hits(rem, b2, cols, hu, pu, criterion), l2, h2, pd, criterion)
+            live = live | block_live(block_hits(rem, b3, cols, hu, pu, criterion), l3, h3, pd, criterion)
+            if (live & lamp_bits) == lamp_bits:
+                return lamp_bits
+            bi += 4
+    return live & lamp_bits
 
 
 @wp.kernel
@@ -353,17 +381,24 @@ def lamp_depth(
     """The depth pass: every sphere offers (depth, id) keys to the low and high lamp of every cell its projected
     disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
 
-    Work goes in 4 x 4 blocks of cells: ``split`` threads share each (sphere, axis) and take its blocks in turn
-    (thread t: particle t % n, axis and share from t / n, so a warp holds neighbouring particles). A block's hit
-    mask comes from 4 row and 4 column offsets in registers; with ``blocks`` (the summaries of ``lamp_blocks``)
-    a hidden sphere leaves a block after one load per lamp instead of one per cell.
+    ``split`` 0: one thread per sphere walks the three axes (the v4 pass of bench/NOTES.md). ``split`` s >= 1:
+    s threads share each (sphere, axis) and take its rows in turn; thread t works on particle t % n, so a warp
+    holds neighbouring particles. With ``blocks`` (``lamp_blocks``' summaries), a sphere first asks the coarse
+    depth buffer which lamps of the axis it could reach at all. Each row is then filtered with loads alone.
     """
     t = wp.tid()
     n = particles.n
     particle = t % n
     share = t / n
-    a = share / split
-    g = share - a * split
+    a_first = int(0)
+    a_last = int(2)
+    g = int(0)
+    step = int(1)
+    if split > 0:
+        a_first = share / split
+        a_last = a_first
+        g = share - a_first * split
+        step = split
     sphere = frame_sphere(grid, particles, particle)
     if not sphere.casts:
         if share == 0 and not inactive(particles, particle):
@@ -371,80 +406,53 @@ def lamp_depth(
         return
     if share == 0 and lamp_outside(grid, sphere, lamp_mask):
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-    lamp_bits = (lamp_mask >> (2 * a)) & 3
-    if lamp_bits == 0:
-        return
     r = sphere.radius
     r2 = r * r
-    pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-    pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-    pd = sphere.center[a]
-    hu = grid.h_u[a]
-    hv = grid.h_v[a]
-    nu = grid.n_u[a]
-    rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-    cols = cell_span(pu - r, pu + r, hu, nu, criterion)
-    if rows[0] > rows[1] or cols[0] > cols[1]:
-        return
-    bi0 = cols[0] / BLOCK
-    bj0 = rows[0] / BLOCK
-    nbi = cols[1] / BLOCK - bi0 + 1
-    nb = nbi * (rows[1] / BLOCK - bj0 + 1)
-    culling = blocks.shape[0] > 0
-    for b in range(g, nb, split):
-        bj = bj0 + b / nbi
-        bi = bi0 + b - (b / nbi) * nbi
-        rem = wp.vec4(-1.0)
-        du = wp.vec4(0.0)
-        du2 = wp.vec4(0.0)
-        for k in range(BLOCK):
-            j = BLOCK * bj + k
-            if j >= rows[0] and j <= rows[1]:
-                dv = cell_offset(j, hv, pv, criterion)
-                rem[k] = r2 - dv * dv
-            i = BLOCK * bi + k
-            du[k] = cell_offset(i, hu, pu, criterion)
-            du2[k] = du[k] * du[k]
-            if i < cols[0] or i > cols[1]:
-                du2[k] = 3.0e38
-        mask = int(0)
-        best = float(-1.0)
-        for jj in range(BLOCK):
-            for ii in range(BLOCK):
-                if rem[jj] >= 0.0 and du2[ii] <= rem[jj]:
-                    mask = mask | (1 << (BLOCK * jj + ii))
-                    best = wp.max(best, rem[jj] - du2[ii])
-        if mask == 0:
+    for a in range(a_first, a_last + 1):
+        lamp_bits = (lamp_mask >> (2 * a)) & 3
+        if lamp_bits == 0:
             continue
-        live = lamp_bits
-        if culling:
-            # No cell of the block can take a depth below pd - reach (low) or above pd + reach (high): sqrt and
-            # subtraction are monotone, and best is the largest rem - du^2 the cells compute themselves.
-            reach = lamp_reach(best, 0.0, criterion)
-            bidx = grid.block_offset[a] + bj * grid.nb_u[a] + bi
-            low = blocks[2 * bidx]
-            high = blocks[2 * bidx + 1]
-            live = 0
-            if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (
-                pack_key(pd - reach, 0) >> wp.uint64(32)
-            ):
-                live = 1
-            if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= (
-                pack_key(-(pd + reach), 0) >> wp.uint64(32)
-            ):
-                live = live | 2
+        pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+        pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+        pd = sphere.center[a]
+        hu = grid.h_u[a]
+        hv = grid.h_v[a]
+        nu = grid.n_u[a]
+        rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
+        if blocks.shape[0] > 0 and rows[0] <= rows[1]:
+            cols = cell_span(pu - r, pu + r, hu, nu, criterion)
+            lamp_bits = blocks_live(grid, blocks, a, pu, pv, pd, r2, rows, cols, criterion, lamp_bits)
+            if lamp_bits == 0:
+                continue
+        for j in range(rows[0] + g, rows[1] + 1, step):
+            # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
+            # of cells and the span from w = sqrt(rem) brackets it.
+            dv = cell_offset(j, hv, pv, criterion)
+            rem = r2 - dv * dv
+            if rem < 0.0:
+                continue
+            w = wp.sqrt(rem)
+            cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+            first = grid.offset[a] + j * nu
+            # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
+            # in float32 (sqrt and subtraction are monotone). Where every kept key already beats that bound, the
+            # row is done with loads alone, no sqrt or key packing; ties keep the row alive.
+            reach = lamp_reach(rem, 0.0, criterion)
+            low_bound = pack_key(pd - reach, 0)
+            high_bound = pack_key(-(pd + reach), 0)
+            live = row_live(keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound)
             live = live & lamp_bits
             if live == 0:
                 continue
-        for jj in range(BLOCK):
-            for ii in range(BLOCK):
-                if (mask & (1 << (BLOCK * jj + ii))) != 0:
-                    depth = lamp_reach(rem[jj], du[ii], criterion)
-                    c = grid.offset[a] + (BLOCK * bj + jj) * nu + BLOCK * bi + ii
+            for i in range(cols[0], cols[1] + 1):
+                du = cell_offset(i, hu, pu, criterion)
+                if du * du <= rem:
+                    depth = lamp_reach(rem, du, criterion)
+                    c = first + i
                     if (live & 1) != 0:
-                        offer_slots(keys, 2 * c * depth_slots, depth_slots, pack_key(pd - depth, particle))
+                        offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
                     if (live & 2) != 0:
-                        offer_slots(keys, (2 * c + 1) * depth_slots, depth_slots, pack_key(-(pd + depth), particle))
+                        offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
 
 
 @wp.kernel
