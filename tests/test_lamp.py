@@ -126,25 +126,25 @@ def test_cpu_and_cuda_bitwise_equal(cuda_device, rng, criterion):
 
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
-    """However the depth pass shares out its work (one thread per sphere, or 1, 3 or 16 per sphere and axis) and
-    with culling on or off, it leaves bitwise the same keys, counts and counters, also warm-started elsewhere."""
+    """However the depth pass shares out its work (one thread per sphere, or 1, 3 or 16 per sphere and axis, in the
+    caller's order or sorted by cell), it leaves bitwise the same keys, counts and counters, also warm-started
+    elsewhere."""
     centers, radii = polydisperse_scene(rng, n=400, extent=6.0, rmin=0.05, rmax=0.8)
     moved = centers + rng.normal(scale=0.05, size=centers.shape)
     for cells_per_diameter in (1.5, 7.0):
         grid = wl.LampGrid.enclosing(centers, radii, cells_per_diameter=cells_per_diameter)
         pos, rad = device_arrays(centers - grid.origin, radii, device)
         other, _ = device_arrays(moved - grid.origin, radii, device)
-        plain = wl.ShiningLamp(grid, criterion=criterion, split=0, culling=False, device=device)
+        plain = wl.ShiningLamp(grid, criterion=criterion, split=0, device=device)
         plain.update(pos, rad, in_frame=True)
-        for split in (0, 1, 3, 16):
-            for culling in (True, False):
-                lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, culling=culling, device=device)
-                lamp.update(other, rad, in_frame=True)
-                lamp.update(pos, rad, in_frame=True)
-                assert (lamp.split, lamp.culling) == (split, culling)
-                np.testing.assert_array_equal(lamp.keys.numpy(), plain.keys.numpy())
-                np.testing.assert_array_equal(lamp.counts_numpy(), plain.counts_numpy())
-                np.testing.assert_array_equal(lamp.diag.numpy(), plain.diag.numpy())
+        for split, order in ((1, False), (3, True), (16, False), (16, True)):
+            lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, order=order, device=device)
+            lamp.update(other, rad, in_frame=True)
+            lamp.update(pos, rad, in_frame=True)
+            assert lamp.split == split and (lamp.order.shape[0] == 3 * len(radii)) == order
+            np.testing.assert_array_equal(lamp.keys.numpy(), plain.keys.numpy())
+            np.testing.assert_array_equal(lamp.counts_numpy(), plain.counts_numpy())
+            np.testing.assert_array_equal(lamp.diag.numpy(), plain.diag.numpy())
 
 
 # --- hard cases -------------------------------------------------------------------------------------------
@@ -404,8 +404,14 @@ def test_update_order_does_not_change_results(device, rng, criterion):
     assert (warm.keys.numpy() == np.uint64(2**64 - 1)).all()
     warm.update(pos, rad)
     np.testing.assert_array_equal(warm.keys.numpy(), fresh.keys.numpy())
-    # Fewer particles than the last owners' indices: stale owners are dropped, not read out of bounds.
+    # Fewer particles than the last owners' indices: stale owners are dropped, not read out of bounds; a work
+    # order sorted for more particles is not used for fewer (it would skip some), and a new one is made.
     few = wl.ShiningLamp(grid, criterion=criterion, device=device)
     few.update(pos[:150], rad[:150])
     warm.update(pos[:150], rad[:150])
     np.testing.assert_array_equal(warm.keys.numpy(), few.keys.numpy())
+    sorted_lamp = wl.ShiningLamp(grid, criterion=criterion, split=2, order=True, device=device)
+    sorted_lamp.update(pos, rad)
+    sorted_lamp.update(pos[:150], rad[:150])
+    np.testing.assert_array_equal(sorted_lamp.keys.numpy(), few.keys.numpy())
+    np.testing.assert_array_equal(sorted_lamp.counts_numpy(), few.counts_numpy())

@@ -135,7 +135,7 @@ class LampDiagnostics:
 #: Threads the depth pass aims for when it splits a small body's footprints: about what an H100 holds resident
 #: (132 SMs x 2048).
 _TARGET_THREADS = 1 << 18
-#: Most threads per (sphere, axis): a footprint of 16 cells per diameter spans about 25 blocks.
+#: Most threads per (sphere, axis): a footprint at 16 cells per diameter spans about 17 rows.
 _MAX_SPLIT = 16
 
 
@@ -146,12 +146,6 @@ def _auto_split(n: int, device) -> int:
     if not device.is_cuda or n == 0 or n >= _TARGET_THREADS:
         return 0
     return int(min(_MAX_SPLIT, max(1, -(-_TARGET_THREADS // (3 * n)))))
-
-
-def _auto_culling(split: int, device) -> bool:
-    """Culling for the one-thread-per-sphere pass on a GPU only: where a (sphere, axis) is split, each share would
-    repeat the coarse check, and on the CPU the check costs more than the row filter it saves."""
-    return device.is_cuda and split == 0
 
 
 class ShiningLamp:
@@ -177,7 +171,7 @@ class ShiningLamp:
         lamps="all",
         device=None,
         split: int | str = "auto",
-        culling: bool | str = "auto",
+        order: bool | str = "auto",
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -191,32 +185,35 @@ class ShiningLamp:
             split: How the depth pass shares out its work: 0, one thread per sphere for its three axes (the v4
                 pass of ``bench/NOTES.md``); s >= 1, s threads per (sphere, axis), taking its rows in turn;
                 ``"auto"`` chooses from the particle count when room is made for them (:meth:`reserve`), so that a
-                small body still fills a GPU (0 on the CPU, where one thread runs the launch).
-            culling: Before walking its rows, a sphere asks a coarse depth buffer (4 x 4 blocks of cells, built
-                after the seed) which lamps it could reach at all, and stops where it is hidden. ``"auto"``
-                decides with ``split``. The result does not depend on ``split`` or ``culling``.
+                small body still fills a GPU (0 on the CPU, where one thread runs the launch). The result does not
+                depend on it.
+            order: With a split, sort the work of each axis by the cell under each particle (a device radix
+                sort), so that a warp's particles read the same rows: at the first update outside a capture, and
+                again whenever :meth:`reorder` is called. ``"auto"``: on a GPU. The result does not depend on it;
+                a body that moves far from where it was sorted only loses speed.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+        if order not in ("auto", True, False):
+            raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
             raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
-        if culling not in ("auto", True, False):
-            raise ValueError(f"culling: expected 'auto', True or False, got {culling!r}")
         self.grid = grid
         self.criterion = _check_criterion(criterion)
         self.lamp_mask = lamp_mask(lamps)
         self.device = wp.get_device(device)
         self._split = split
-        self._culling = culling
         self.split = 0
+        self._order = order
+        self.order = wp.empty(0, dtype=wp.int32, device=self.device)
+        self._no_order = self.order
+        self._order_keys = wp.empty(0, dtype=wp.int32, device=self.device)
+        self._order_ids = wp.empty(0, dtype=wp.int32, device=self.device)
+        self._ordered_n = -1
         self._params = {False: grid.params(), True: grid.params(in_frame=True)}
         self._area = wp.vec3d(*grid.cell_area)
         d = self.device
         self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        # Allocated with the grid (its nbytes counts them); used when culling is on.
-        self.blocks = wp.zeros(2 * grid.n_blocks if culling else 0, dtype=wp.uint64, device=d)
-        self._no_blocks = wp.empty(0, dtype=wp.uint64, device=d)
-        self.culling = False
         self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -235,7 +232,12 @@ class ShiningLamp:
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
-            self.culling = bool(_auto_culling(self.split, self.device) if self._culling == "auto" else self._culling)
+            sort = self.device.is_cuda if self._order == "auto" else self._order
+            if sort and self.split > 0:
+                self.order = wp.empty(3 * n, dtype=wp.int32, device=self.device)
+                self._order_keys = wp.empty(2 * n, dtype=wp.int32, device=self.device)
+                self._order_ids = wp.empty(2 * n, dtype=wp.int32, device=self.device)
+                self._ordered_n = -1
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
@@ -283,15 +285,35 @@ class ShiningLamp:
         particles.active = active
         particles.n = n
         self._inputs = (self._params[bool(in_frame)], particles)
+        if self.order.shape[0] and self._ordered_n != n and not self.device.is_capturing:
+            self.reorder()
         self.launch_seed()
         self.launch_depth()
         self.launch_scatter()
 
+    def reorder(self) -> None:
+        """Sort the depth pass's work on each axis by the cell under each particle, at the last update's positions
+        (a device radix sort; not inside a capture). Only a lamp with a split and ``order`` on keeps an order."""
+        if not self.order.shape[0] or self._inputs is None:
+            return
+        grid, particles = self._inputs
+        n = self.n
+        for a in range(3):
+            wp.launch(
+                lamp_kernels.lamp_order_keys,
+                dim=n,
+                inputs=[grid, particles, a],
+                outputs=[self._order_keys, self._order_ids],
+                device=self.device,
+            )
+            wp.utils.radix_sort_pairs(self._order_keys, self._order_ids, n)
+            wp.copy(self.order, self._order_ids, dest_offset=a * n, src_offset=0, count=n)
+        self._ordered_n = n
+
     # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, re-evaluate each cell's last owners at the current positions, and (with
-        culling) summarise the seeded keys per block."""
+        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
         grid, particles = self._inputs
         d = self.device
         wp.launch(
@@ -301,14 +323,6 @@ class ShiningLamp:
             outputs=[self.keys, self.counts, self.diag],
             device=d,
         )
-        if self.culling:
-            wp.launch(
-                lamp_kernels.lamp_blocks,
-                dim=self.grid.n_blocks,
-                inputs=[grid, self.keys, 1],
-                outputs=[self.blocks],
-                device=d,
-            )
 
     def launch_depth(self) -> None:
         """Update step 2: every sphere offers its depth to every cell it covers."""
@@ -318,7 +332,7 @@ class ShiningLamp:
         wp.launch(
             lamp_kernels.lamp_depth,
             dim=self.n * (3 * self.split if self.split else 1),
-            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._depth_blocks()],
+            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._launch_order()],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
@@ -336,8 +350,9 @@ class ShiningLamp:
             device=self.device,
         )
 
-    def _depth_blocks(self) -> wp.array:
-        return self.blocks if self.culling else self._no_blocks
+    def _launch_order(self) -> wp.array:
+        # An order sorted for another particle count would skip particles: run unordered until the next reorder.
+        return self.order if self._ordered_n == self.n else self._no_order
 
     def add_forces(self, forces: wp.array, pressure) -> None:
         """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.

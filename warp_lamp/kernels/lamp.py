@@ -9,8 +9,8 @@ one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. 
 import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
-from warp_lamp.kernels.grid import BLOCK, LampGridParams, grid_block, grid_cell
-from warp_lamp.kernels.keys import EMPTY_KEY, LOW_WORD, key_owner, pack_key
+from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -197,6 +197,13 @@ def lamp_seed(
     if c >= grid.n_cells:
         return
     cell = grid_cell(grid, c)
+    if depth_slots == 1:
+        # One slot: no sorting, and no local array for the compiler to place in memory.
+        for side in range(2):
+            key = keys[2 * c + side]
+            if key != EMPTY_KEY:
+                keys[2 * c + side] = owner_key(grid, particles, cell, side, key_owner(key), criterion)
+        return
     for side in range(2):
         base = key_slot(c, side, depth_slots)
         kept = SlotKeys()
@@ -239,130 +246,86 @@ def lamp_outside(grid: LampGridParams, sphere: FrameSphere, lamp_mask: wp.int32)
     return False
 
 
-@wp.kernel
-def lamp_blocks(
-    grid: LampGridParams,
-    keys: wp.array[wp.uint64],
-    depth_slots: wp.int32,
-    # outputs
-    blocks: wp.array[wp.uint64],
-):
-    """One thread per 4 x 4 block of cells summarises each lamp's keys after the seed: the largest depth bits of
-    its cells' last kept keys (slot D - 1) in the high word, a 16-bit mask of cells whose last slot is empty in the
-    low word. Keys only fall during the depth pass, so the summary stays an upper bound: a sphere whose best
-    depth over its cells in the block loses to it, and covers no empty cell there, can skip the block."""
-    b = wp.tid()
-    blk = grid_block(grid, b)
-    a = blk[0]
-    for side in range(2):
-        worst = wp.uint64(0)
-        empty = int(0)
-        for jj in range(BLOCK):
-            j = BLOCK * blk[2] + jj
-            for ii in range(BLOCK):
-                i = BLOCK * blk[1] + ii
-                if i < grid.n_u[a] and j < grid.n_v[a]:
-                    c = grid.offset[a] + j * grid.n_u[a] + i
-                    k = keys[key_slot(c, side, depth_slots) + depth_slots - 1]
-                    if k == EMPTY_KEY:
-                        empty = empty | (1 << (BLOCK * jj + ii))
-                    else:
-                        worst = wp.max(worst, k >> wp.uint64(32))
-        blocks[2 * b + side] = (worst << wp.uint64(32)) | wp.uint64(empty)
-
-
 @wp.func
-def block_hits(
-    rem: wp.vec4, bi: wp.int32, cols: wp.vec2i, hu: wp.float32, pu: wp.float32, criterion: wp.int32
-) -> wp.vec2:
-    """(mask, best) of block column bi for a block row whose 4 rows have remainders ``rem`` (r^2 - dv^2, < 0 for
-    rows the sphere misses): bit 4 jj + ii of the mask is set where the sphere lights cell (ii, jj) of the block,
-    exactly as the row loop decides it, and best is the largest rem - du^2 over those cells (a 16-bit mask is exact
-    in a float32)."""
-    mask = int(0)
-    best = float(-1.0)
-    for ii in range(BLOCK):
-        i = BLOCK * bi + ii
-        if i >= cols[0] and i <= cols[1]:
-            du = cell_offset(i, hu, pu, criterion)
-            du2 = du * du
-            for jj in range(BLOCK):
-                if rem[jj] >= 0.0 and du2 <= rem[jj]:
-                    mask = mask | (1 << (BLOCK * jj + ii))
-                    best = wp.max(best, rem[jj] - du2)
-    return wp.vec2(float(mask), best)
-
-
-@wp.func
-def block_live(hits: wp.vec2, low: wp.uint64, high: wp.uint64, pd: wp.float32, criterion: wp.int32) -> wp.int32:
-    """Which lamps (bit 0 low, bit 1 high) of a block could take an offer from a sphere whose hits there are
-    ``hits``, given the block's summaries (``lamp_blocks``): one that covers an empty cell of the block, or whose
-    best depth there does not lose to the block's worst kept key (ties keep it live)."""
-    mask = int(hits[0])
-    if mask == 0:
-        return 0
-    # No lit cell's depth is below pd - reach (low) or above pd + reach (high): sqrt and subtraction are monotone,
-    # and hits[1] is the largest rem - du^2 that those cells compute themselves.
-    reach = lamp_reach(hits[1], 0.0, criterion)
-    live = int(0)
-    if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (pack_key(pd - reach, 0) >> wp.uint64(32)):
-        live = 1
-    bound = pack_key(-(pd + reach), 0) >> wp.uint64(32)
-    if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= bound:
-        live = live | 2
-    return live
-
-
-@wp.func
-def blocks_live(
-    grid: LampGridParams,
-    blocks: wp.array[wp.uint64],
+def depth_axis(
     a: wp.int32,
-    pu: wp.float32,
-    pv: wp.float32,
-    pd: wp.float32,
-    r2: wp.float32,
-    rows: wp.vec2i,
-    cols: wp.vec2i,
+    grid: LampGridParams,
+    sphere: FrameSphere,
+    particle: wp.int32,
     criterion: wp.int32,
-    lamp_bits: wp.int32,
-) -> wp.int32:
-    """The lamps of axis a (bits as ``lamp_bits``) that could take an offer from the sphere anywhere: 0 when the
-    coarse depth buffer hides it everywhere. Four blocks per step, their eight summary loads issued together, and
-    done as soon as both lamps are found live."""
+    lamp_mask: wp.int32,
+    first_row: wp.int32,
+    row_step: wp.int32,
+    depth_slots: wp.int32,
+    keys: wp.array[wp.uint64],
+):
+    """One sphere's offers on grid a, rows first_row, first_row + row_step, ... of its footprint. Callers pass a
+    literal axis, so that the compiler resolves every vector index below to a register: a runtime axis put them in
+    local memory and tripled the pass's time (bench/NOTES.md v5)."""
+    lamp_bits = (lamp_mask >> (2 * a)) & 3
+    if lamp_bits == 0:
+        return
+    r = sphere.radius
+    r2 = r * r
+    pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+    pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+    pd = sphere.center[a]
     hu = grid.h_u[a]
-    bi1 = cols[1] / BLOCK
-    live = int(0)
-    for bj in range(rows[0] / BLOCK, rows[1] / BLOCK + 1):
-        rem = wp.vec4(-1.0)
-        for k in range(BLOCK):
-            j = BLOCK * bj + k
-            if j >= rows[0] and j <= rows[1]:
-                dv = cell_offset(j, grid.h_v[a], pv, criterion)
-                rem[k] = r2 - dv * dv
-        first = grid.block_offset[a] + bj * grid.nb_u[a]
-        bi = cols[0] / BLOCK
-        while bi <= bi1:
-            # Past the last block column, re-read the last one: a repeat cannot change the answer.
-            b1 = wp.min(bi + 1, bi1)
-            b2 = wp.min(bi + 2, bi1)
-            b3 = wp.min(bi + 3, bi1)
-            l0 = blocks[2 * (first + bi)]
-            h0 = blocks[2 * (first + bi) + 1]
-            l1 = blocks[2 * (first + b1)]
-            h1 = blocks[2 * (first + b1) + 1]
-            l2 = blocks[2 * (first + b2)]
-            h2 = blocks[2 * (first + b2) + 1]
-            l3 = blocks[2 * (first + b3)]
-            h3 = blocks[2 * (first + b3) + 1]
-            live = live | block_live(block_hits(rem, bi, cols, hu, pu, criterion), l0, h0, pd, criterion)
-            live = live | block_live(block_hits(rem, b1, cols, hu, pu, criterion), l1, h1, pd, criterion)
-            live = live | block_live(block_hits(rem, b2, cols, hu, pu, criterion), l2, h2, pd, criterion)
-            live = live | block_live(block_hits(rem, b3, cols, hu, pu, criterion), l3, h3, pd, criterion)
-            if (live & lamp_bits) == lamp_bits:
-                return lamp_bits
-            bi += 4
-    return live & lamp_bits
+    hv = grid.h_v[a]
+    nu = grid.n_u[a]
+    rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
+    for j in range(rows[0] + first_row, rows[1] + 1, row_step):
+        # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
+        # of cells and the span from w = sqrt(rem) brackets it.
+        dv = cell_offset(j, hv, pv, criterion)
+        rem = r2 - dv * dv
+        if rem < 0.0:
+            continue
+        w = wp.sqrt(rem)
+        cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+        first = grid.offset[a] + j * nu
+        # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly in
+        # float32 (sqrt and subtraction are monotone). Where every kept key already beats that bound, the row is
+        # done with loads alone, no sqrt or key packing; ties keep the row alive.
+        reach = lamp_reach(rem, 0.0, criterion)
+        live = row_live(
+            keys, first + cols[0], first + cols[1], depth_slots, pack_key(pd - reach, 0), pack_key(-(pd + reach), 0)
+        )
+        live = live & lamp_bits
+        if live == 0:
+            continue
+        for i in range(cols[0], cols[1] + 1):
+            du = cell_offset(i, hu, pu, criterion)
+            if du * du <= rem:
+                depth = lamp_reach(rem, du, criterion)
+                c = first + i
+                if (live & 1) != 0:
+                    offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
+                if (live & 2) != 0:
+                    offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
+
+
+@wp.kernel
+def lamp_order_keys(
+    grid: LampGridParams,
+    particles: LampParticles,
+    a: wp.int32,
+    # outputs
+    cell_keys: wp.array[wp.int32],
+    ids: wp.array[wp.int32],
+):
+    """Sort keys for the depth pass's work order on grid a: the cell under each particle's centre (clamped to the
+    grid), so that a warp's particles read the same rows; particles that cast no light go last."""
+    p = wp.tid()
+    ids[p] = p
+    cell_keys[p] = grid.n_cells
+    sphere = frame_sphere(grid, particles, p)
+    if sphere.casts:
+        u = (sphere.center[(a + 1) % 3] - grid.corner_u[a]) / grid.h_u[a]
+        v = (sphere.center[(a + 2) % 3] - grid.corner_v[a]) / grid.h_v[a]
+        i = wp.int32(wp.clamp(wp.floor(u), 0.0, float(grid.n_u[a] - 1)))
+        j = wp.int32(wp.clamp(wp.floor(v), 0.0, float(grid.n_v[a] - 1)))
+        cell_keys[p] = grid.offset[a] + j * grid.n_u[a] + i
 
 
 @wp.kernel
@@ -373,7 +336,7 @@ def lamp_depth(
     lamp_mask: wp.int32,
     split: wp.int32,
     depth_slots: wp.int32,
-    blocks: wp.array[wp.uint64],
+    order: wp.array[wp.int32],
     # outputs
     keys: wp.array[wp.uint64],
     diag: wp.array[wp.int32],
@@ -382,23 +345,16 @@ def lamp_depth(
     disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
 
     ``split`` 0: one thread per sphere walks the three axes (the v4 pass of bench/NOTES.md). ``split`` s >= 1:
-    s threads share each (sphere, axis) and take its rows in turn; thread t works on particle t % n, so a warp
-    holds neighbouring particles. With ``blocks`` (``lamp_blocks``' summaries), a sphere first asks the coarse
-    depth buffer which lamps of the axis it could reach at all. Each row is then filtered with loads alone.
+    s threads share each (sphere, axis) and take its rows in turn; thread t works on the (t % n)-th particle of
+    axis a's ``order`` (``lamp_order_keys``, sorted), or of the caller's order where ``order`` is empty, so that a
+    warp holds particles that read the same rows.
     """
     t = wp.tid()
     n = particles.n
     particle = t % n
     share = t / n
-    a_first = int(0)
-    a_last = int(2)
-    g = int(0)
-    step = int(1)
-    if split > 0:
-        a_first = share / split
-        a_last = a_first
-        g = share - a_first * split
-        step = split
+    if split > 0 and order.shape[0] > 0:
+        particle = order[(share / split) * n + particle]
     sphere = frame_sphere(grid, particles, particle)
     if not sphere.casts:
         if share == 0 and not inactive(particles, particle):
@@ -406,53 +362,19 @@ def lamp_depth(
         return
     if share == 0 and lamp_outside(grid, sphere, lamp_mask):
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-    r = sphere.radius
-    r2 = r * r
-    for a in range(a_first, a_last + 1):
-        lamp_bits = (lamp_mask >> (2 * a)) & 3
-        if lamp_bits == 0:
-            continue
-        pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-        pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-        pd = sphere.center[a]
-        hu = grid.h_u[a]
-        hv = grid.h_v[a]
-        nu = grid.n_u[a]
-        rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-        if blocks.shape[0] > 0 and rows[0] <= rows[1]:
-            cols = cell_span(pu - r, pu + r, hu, nu, criterion)
-            lamp_bits = blocks_live(grid, blocks, a, pu, pv, pd, r2, rows, cols, criterion, lamp_bits)
-            if lamp_bits == 0:
-                continue
-        for j in range(rows[0] + g, rows[1] + 1, step):
-            # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
-            # of cells and the span from w = sqrt(rem) brackets it.
-            dv = cell_offset(j, hv, pv, criterion)
-            rem = r2 - dv * dv
-            if rem < 0.0:
-                continue
-            w = wp.sqrt(rem)
-            cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-            first = grid.offset[a] + j * nu
-            # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly
-            # in float32 (sqrt and subtraction are monotone). Where every kept key already beats that bound, the
-            # row is done with loads alone, no sqrt or key packing; ties keep the row alive.
-            reach = lamp_reach(rem, 0.0, criterion)
-            low_bound = pack_key(pd - reach, 0)
-            high_bound = pack_key(-(pd + reach), 0)
-            live = row_live(keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound)
-            live = live & lamp_bits
-            if live == 0:
-                continue
-            for i in range(cols[0], cols[1] + 1):
-                du = cell_offset(i, hu, pu, criterion)
-                if du * du <= rem:
-                    depth = lamp_reach(rem, du, criterion)
-                    c = first + i
-                    if (live & 1) != 0:
-                        offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
-                    if (live & 2) != 0:
-                        offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
+    if split == 0:
+        depth_axis(0, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
+        depth_axis(1, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
+        depth_axis(2, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
+        return
+    a = share / split
+    g = share - a * split
+    if a == 0:
+        depth_axis(0, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
+    elif a == 1:
+        depth_axis(1, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
+    else:
+        depth_axis(2, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
 
 
 @wp.kernel
