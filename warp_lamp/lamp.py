@@ -319,7 +319,7 @@ class ShiningLamp:
         wp.launch(
             lamp_kernels.lamp_seed,
             dim=max(self.grid.n_cells, self.n, lamp_kernels.N_DIAG),
-            inputs=[grid, particles, self.criterion, 1],
+            inputs=[grid, particles, self.criterion],
             outputs=[self.keys, self.counts, self.diag],
             device=d,
         )

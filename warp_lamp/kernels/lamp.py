@@ -148,17 +148,24 @@ def row_live(
 
 @wp.func
 def owner_key(
-    grid: LampGridParams, particles: LampParticles, cell: wp.vec3i, side: wp.int32, owner: wp.int32, criterion: wp.int32
+    a: wp.int32,
+    grid: LampGridParams,
+    particles: LampParticles,
+    i: wp.int32,
+    j: wp.int32,
+    side: wp.int32,
+    owner: wp.int32,
+    criterion: wp.int32,
 ) -> wp.uint64:
-    """The key that particle ``owner`` offers to lamp ``side`` of ``cell`` (a, i, j) at the current positions, or
-    EMPTY_KEY where it no longer lights the cell: the depth pass's own decision, through the same functions."""
+    """The key that particle ``owner`` offers to lamp ``side`` of cell (i, j) of grid a at the current positions,
+    or EMPTY_KEY where it no longer lights the cell: the depth pass's own decision, through the same functions.
+    Callers pass a literal axis (see ``lamp_depth``)."""
     sphere = frame_sphere(grid, particles, owner)
     if not sphere.casts:
         return EMPTY_KEY
-    a = cell[0]
     r = sphere.radius
-    dv = cell_offset(cell[2], grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
-    du = cell_offset(cell[1], grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
+    dv = cell_offset(j, grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
+    du = cell_offset(i, grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
     rem = r * r - dv * dv
     if rem < 0.0 or du * du > rem:
         return EMPTY_KEY
@@ -168,24 +175,38 @@ def owner_key(
     return pack_key(-(sphere.center[a] + reach), owner)
 
 
+@wp.func
+def seed_key(
+    grid: LampGridParams, particles: LampParticles, cell: wp.vec3i, side: wp.int32, key: wp.uint64, criterion: wp.int32
+) -> wp.uint64:
+    """``owner_key`` for a kept key's owner, with the grid's axis dispatched as a literal."""
+    if key == EMPTY_KEY:
+        return EMPTY_KEY
+    owner = key_owner(key)
+    out = EMPTY_KEY
+    for a in range(3):
+        if cell[0] == a:
+            out = owner_key(a, grid, particles, cell[1], cell[2], side, owner, criterion)
+    return out
+
+
 @wp.kernel
 def lamp_seed(
     grid: LampGridParams,
     particles: LampParticles,
     criterion: wp.int32,
-    depth_slots: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
     counts: wp.array[wp.int32],
     diag: wp.array[wp.int32],
 ):
-    """One thread per cell replaces each lamp's kept keys with their owners' keys at the current positions (EMPTY
-    where an owner no longer lights the cell), re-sorted.
+    """One thread per cell replaces each lamp's key with its owner's key at the current positions (EMPTY where the
+    owner no longer lights the cell).
 
-    The seed keys are offers the depth pass makes anyway, so the final result is unchanged; but they are nearly
-    always the winners already, so the depth pass then finds almost every cell decided and issues almost no
-    atomics. This replaces clearing the keys. Threads past the cells also clear the particles' counts and the
-    diagnostics: one launch instead of two.
+    The seed is an offer the depth pass makes anyway, so the final result is unchanged; but it is nearly always
+    the winner already, so the depth pass then finds almost every cell decided and issues almost no atomics. This
+    replaces clearing the keys. Threads past the cells also clear the particles' counts and the diagnostics: one
+    launch instead of two.
     """
     c = wp.tid()
     if c < particles.n:
@@ -197,21 +218,57 @@ def lamp_seed(
     if c >= grid.n_cells:
         return
     cell = grid_cell(grid, c)
-    if depth_slots == 1:
-        # One slot: no sorting, and no local array for the compiler to place in memory.
-        for side in range(2):
-            key = keys[2 * c + side]
-            if key != EMPTY_KEY:
-                keys[2 * c + side] = owner_key(grid, particles, cell, side, key_owner(key), criterion)
+    # Unrolled over the axis and written out rather than called, so that the indices stay literals (lamp_depth).
+    for a in range(3):
+        if cell[0] == a:
+            for side in range(2):
+                key = keys[2 * c + side]
+                if key != EMPTY_KEY:
+                    owner = key_owner(key)
+                    sphere = frame_sphere(grid, particles, owner)
+                    key = EMPTY_KEY
+                    if sphere.casts:
+                        r = sphere.radius
+                        dv = cell_offset(cell[2], grid.h_v[a], sphere.center[(a + 2) % 3] - grid.corner_v[a], criterion)
+                        du = cell_offset(cell[1], grid.h_u[a], sphere.center[(a + 1) % 3] - grid.corner_u[a], criterion)
+                        rem = r * r - dv * dv
+                        if rem >= 0.0 and du * du <= rem:
+                            reach = lamp_reach(rem, du, criterion)
+                            if side == 0:
+                                key = pack_key(sphere.center[a] - reach, owner)
+                            else:
+                                key = pack_key(-(sphere.center[a] + reach), owner)
+                    keys[2 * c + side] = key
+
+
+@wp.kernel
+def lamp_seed_slots(
+    grid: LampGridParams,
+    particles: LampParticles,
+    criterion: wp.int32,
+    depth_slots: wp.int32,
+    # outputs
+    keys: wp.array[wp.uint64],
+    counts: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+):
+    """``lamp_seed`` for samples that keep ``depth_slots`` > 1 keys per lamp: each kept key is re-evaluated, and the
+    slots re-sorted (the owners are distinct, so their keys are too)."""
+    c = wp.tid()
+    if c < particles.n:
+        counts[3 * c] = 0
+        counts[3 * c + 1] = 0
+        counts[3 * c + 2] = 0
+    if c < diag.shape[0]:
+        diag[c] = 0
+    if c >= grid.n_cells:
         return
+    cell = grid_cell(grid, c)
     for side in range(2):
         base = key_slot(c, side, depth_slots)
         kept = SlotKeys()
         for slot in range(depth_slots):
-            key = keys[base + slot]
-            if key != EMPTY_KEY:
-                key = owner_key(grid, particles, cell, side, key_owner(key), criterion)
-            # Insertion into the ascending prefix: the owners are distinct, so their keys are too.
+            key = seed_key(grid, particles, cell, side, keys[base + slot], criterion)
             k = slot
             while k > 0:
                 if kept[k - 1] <= key:
@@ -244,65 +301,6 @@ def lamp_outside(grid: LampGridParams, sphere: FrameSphere, lamp_mask: wp.int32)
             if pu + r > grid.h_u[a] * float(grid.n_u[a]) or pv + r > grid.h_v[a] * float(grid.n_v[a]):
                 return True
     return False
-
-
-@wp.func
-def depth_axis(
-    a: wp.int32,
-    grid: LampGridParams,
-    sphere: FrameSphere,
-    particle: wp.int32,
-    criterion: wp.int32,
-    lamp_mask: wp.int32,
-    first_row: wp.int32,
-    row_step: wp.int32,
-    depth_slots: wp.int32,
-    keys: wp.array[wp.uint64],
-):
-    """One sphere's offers on grid a, rows first_row, first_row + row_step, ... of its footprint. Callers pass a
-    literal axis, so that the compiler resolves every vector index below to a register: a runtime axis put them in
-    local memory and tripled the pass's time (bench/NOTES.md v5)."""
-    lamp_bits = (lamp_mask >> (2 * a)) & 3
-    if lamp_bits == 0:
-        return
-    r = sphere.radius
-    r2 = r * r
-    pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-    pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-    pd = sphere.center[a]
-    hu = grid.h_u[a]
-    hv = grid.h_v[a]
-    nu = grid.n_u[a]
-    rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-    for j in range(rows[0] + first_row, rows[1] + 1, row_step):
-        # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one run
-        # of cells and the span from w = sqrt(rem) brackets it.
-        dv = cell_offset(j, hv, pv, criterion)
-        rem = r2 - dv * dv
-        if rem < 0.0:
-            continue
-        w = wp.sqrt(rem)
-        cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-        first = grid.offset[a] + j * nu
-        # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high), exactly in
-        # float32 (sqrt and subtraction are monotone). Where every kept key already beats that bound, the row is
-        # done with loads alone, no sqrt or key packing; ties keep the row alive.
-        reach = lamp_reach(rem, 0.0, criterion)
-        live = row_live(
-            keys, first + cols[0], first + cols[1], depth_slots, pack_key(pd - reach, 0), pack_key(-(pd + reach), 0)
-        )
-        live = live & lamp_bits
-        if live == 0:
-            continue
-        for i in range(cols[0], cols[1] + 1):
-            du = cell_offset(i, hu, pu, criterion)
-            if du * du <= rem:
-                depth = lamp_reach(rem, du, criterion)
-                c = first + i
-                if (live & 1) != 0:
-                    offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
-                if (live & 2) != 0:
-                    offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
 
 
 @wp.kernel
@@ -351,10 +349,17 @@ def lamp_depth(
     """
     t = wp.tid()
     n = particles.n
-    particle = t % n
     share = t / n
-    if split > 0 and order.shape[0] > 0:
-        particle = order[(share / split) * n + particle]
+    axis = int(-1)
+    first_row = int(0)
+    row_step = int(1)
+    particle = t - share * n
+    if split > 0:
+        axis = share / split
+        first_row = share - axis * split
+        row_step = split
+        if order.shape[0] > 0:
+            particle = order[axis * n + particle]
     sphere = frame_sphere(grid, particles, particle)
     if not sphere.casts:
         if share == 0 and not inactive(particles, particle):
@@ -362,19 +367,50 @@ def lamp_depth(
         return
     if share == 0 and lamp_outside(grid, sphere, lamp_mask):
         wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-    if split == 0:
-        depth_axis(0, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
-        depth_axis(1, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
-        depth_axis(2, grid, sphere, particle, criterion, lamp_mask, 0, 1, depth_slots, keys)
-        return
-    a = share / split
-    g = share - a * split
-    if a == 0:
-        depth_axis(0, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
-    elif a == 1:
-        depth_axis(1, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
-    else:
-        depth_axis(2, grid, sphere, particle, criterion, lamp_mask, g, split, depth_slots, keys)
+    r = sphere.radius
+    r2 = r * r
+    # A loop of constant length that Warp unrolls: every vector index below is then a literal, which the compiler
+    # keeps in registers. With the axis as a runtime value they went to local memory and the pass took three
+    # times as long (bench/NOTES.md v5).
+    for a in range(3):
+        lamp_bits = (lamp_mask >> (2 * a)) & 3
+        if (axis < 0 or axis == a) and lamp_bits != 0:
+            pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+            pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+            pd = sphere.center[a]
+            hu = grid.h_u[a]
+            hv = grid.h_v[a]
+            nu = grid.n_u[a]
+            rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
+            for j in range(rows[0] + first_row, rows[1] + 1, row_step):
+                # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
+                # run of cells and the span from w = sqrt(rem) brackets it.
+                dv = cell_offset(j, hv, pv, criterion)
+                rem = r2 - dv * dv
+                if rem < 0.0:
+                    continue
+                w = wp.sqrt(rem)
+                cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+                first = grid.offset[a] + j * nu
+                # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high),
+                # exactly in float32 (sqrt and subtraction are monotone). Where every kept key already beats that
+                # bound, the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
+                reach = lamp_reach(rem, 0.0, criterion)
+                low_bound = pack_key(pd - reach, 0)
+                high_bound = pack_key(-(pd + reach), 0)
+                live = row_live(keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound)
+                live = live & lamp_bits
+                if live == 0:
+                    continue
+                for i in range(cols[0], cols[1] + 1):
+                    du = cell_offset(i, hu, pu, criterion)
+                    if du * du <= rem:
+                        depth = lamp_reach(rem, du, criterion)
+                        c = first + i
+                        if (live & 1) != 0:
+                            offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
+                        if (live & 2) != 0:
+                            offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
 
 
 @wp.kernel
