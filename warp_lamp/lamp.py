@@ -137,15 +137,27 @@ class LampDiagnostics:
 _TARGET_THREADS = 1 << 18
 #: Most threads per (sphere, axis): a footprint at 16 cells per diameter spans about 17 rows.
 _MAX_SPLIT = 16
+#: Particles from which the automatic choices treat a body as large.
+_LARGE_BODY = 1 << 16
 
 
 def _auto_split(n: int, device) -> int:
     """The depth pass's split for n particles: 0 (one thread per sphere) on the CPU, where one thread runs the
-    launch anyway, and for bodies that fill a GPU by themselves; else enough threads per (sphere, axis) to bring
-    the launch up to about what a GPU holds resident."""
-    if not device.is_cuda or n == 0 or n >= _TARGET_THREADS:
+    launch anyway; on a GPU at least one thread per (sphere, axis), and more until the launch holds about what the
+    GPU holds resident."""
+    if not device.is_cuda or n == 0:
         return 0
     return int(min(_MAX_SPLIT, max(1, -(-_TARGET_THREADS // (3 * n)))))
+
+
+def _auto_order(n: int, device) -> bool:
+    """Sorted work on a GPU for bodies large enough that warps of unrelated particles thrash the L2 cache."""
+    return device.is_cuda and n >= _LARGE_BODY
+
+
+def _auto_culling(n: int, device) -> bool:
+    """The coarse depth buffer on a GPU for large bodies, whose hidden spheres are most of the work."""
+    return device.is_cuda and n >= _LARGE_BODY
 
 
 class ShiningLamp:
@@ -172,6 +184,7 @@ class ShiningLamp:
         device=None,
         split: int | str = "auto",
         order: bool | str = "auto",
+        culling: bool | str = "auto",
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -191,11 +204,16 @@ class ShiningLamp:
                 sort), so that a warp's particles read the same rows: at the first update outside a capture, and
                 again whenever :meth:`reorder` is called. ``"auto"``: on a GPU. The result does not depend on it;
                 a body that moves far from where it was sorted only loses speed.
+            culling: Before walking its rows, a sphere asks a coarse depth buffer (4 x 4 blocks of cells, built
+                after the seed) which lamps it could reach at all, and stops where it is hidden everywhere. The
+                result does not depend on it.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         if order not in ("auto", True, False):
             raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
+        if culling not in ("auto", True, False):
+            raise ValueError(f"culling: expected 'auto', True or False, got {culling!r}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
             raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
         self.grid = grid
@@ -205,6 +223,8 @@ class ShiningLamp:
         self._split = split
         self.split = 0
         self._order = order
+        self._culling = culling
+        self.culling = False
         self.order = wp.empty(0, dtype=wp.int32, device=self.device)
         self._no_order = self.order
         self._order_keys = wp.empty(0, dtype=wp.int32, device=self.device)
@@ -214,6 +234,8 @@ class ShiningLamp:
         self._area = wp.vec3d(*grid.cell_area)
         d = self.device
         self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
+        self.blocks = wp.zeros(2 * grid.n_blocks, dtype=wp.uint64, device=d)
+        self._no_blocks = wp.empty(0, dtype=wp.uint64, device=d)
         self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -232,7 +254,8 @@ class ShiningLamp:
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
-            sort = self.device.is_cuda if self._order == "auto" else self._order
+            self.culling = bool(_auto_culling(n, self.device) if self._culling == "auto" else self._culling)
+            sort = _auto_order(n, self.device) if self._order == "auto" else self._order
             if sort and self.split > 0:
                 self.order = wp.empty(3 * n, dtype=wp.int32, device=self.device)
                 self._order_keys = wp.empty(2 * n, dtype=wp.int32, device=self.device)
@@ -313,7 +336,8 @@ class ShiningLamp:
     # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
+        """Update step 1: clear the counts, re-evaluate each cell's last owner at the current positions, and (with
+        culling) summarise the seeded keys per block."""
         grid, particles = self._inputs
         d = self.device
         wp.launch(
@@ -323,6 +347,14 @@ class ShiningLamp:
             outputs=[self.keys, self.counts, self.diag],
             device=d,
         )
+        if self.culling:
+            wp.launch(
+                lamp_kernels.lamp_blocks,
+                dim=self.grid.n_blocks,
+                inputs=[grid, self.keys],
+                outputs=[self.blocks],
+                device=d,
+            )
 
     def launch_depth(self) -> None:
         """Update step 2: every sphere offers its depth to every cell it covers."""
@@ -332,7 +364,16 @@ class ShiningLamp:
         wp.launch(
             lamp_kernels.lamp_depth,
             dim=self.n * (3 * self.split if self.split else 1),
-            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._launch_order()],
+            inputs=[
+                grid,
+                particles,
+                self.criterion,
+                self.lamp_mask,
+                self.split,
+                1,
+                self._launch_order(),
+                self.blocks if self.culling else self._no_blocks,
+            ],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,

@@ -17,7 +17,7 @@ from warp_lamp.scenes import scene_lattice_box
 wp.config.log_level = wp.LOG_WARNING
 
 dev = wp.get_device("cuda:0")
-options = {"split": 0} if "--v4" in sys.argv else {}
+options = {"split": 0, "order": False, "culling": False} if "--v4" in sys.argv else {}
 sizes = [int(x) for x in sys.argv[1:] if x != "--v4"] or [100, 200]
 rows = []
 for m in sizes:

@@ -9,8 +9,8 @@ one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. 
 import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
-from warp_lamp.kernels.grid import LampGridParams, grid_cell
-from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
+from warp_lamp.kernels.grid import BLOCK, LampGridParams, grid_block, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, LOW_WORD, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -87,20 +87,24 @@ def key_slot(c: wp.int32, side: wp.int32, depth_slots: wp.int32) -> wp.int32:
 
 
 @wp.func
-def offer(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key: wp.uint64):
+def offer(keys: wp.array[wp.uint64], slot: wp.int32, key: wp.uint64):
+    """Keep the smaller key at keys[slot]. Read first: a losing offer costs a load instead of an L2 atomic round
+    trip; the atomic's result is not read, so it is a fire-and-forget reduction."""
+    if key < keys[slot]:
+        wp.atomic_min(keys, slot, key)
+
+
+@wp.func
+def offer_slots(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key: wp.uint64):
     """Keep the ``depth_slots`` smallest distinct keys offered to keys[base ... base + D - 1], in ascending order.
 
-    Read the last slot first: an offer that cannot enter costs a load instead of an L2 atomic round trip. With one
-    slot, one atomic_min whose result is not read (a fire-and-forget reduction). With D slots, a chain of
-    atomic_min: the loser of each exchange moves down to the next slot. A slot's value only decreases, so each slot
-    ends as the minimum of what was pushed into it, which makes the result the D smallest keys in order, under any
-    interleaving; an exchange that finds its own key already there stops, so an offer the seed placed, or a
-    duplicate, is not kept twice.
+    Read the last slot first: an offer that cannot enter costs a load. Otherwise a chain of atomic_min: the loser
+    of each exchange moves down to the next slot. A slot's value only decreases, so each slot ends as the minimum
+    of what was pushed into it, which makes the result the D smallest keys in order, under any interleaving; an
+    exchange that finds its own key already there stops, so an offer the seed placed, or a duplicate, is not kept
+    twice.
     """
     if key >= keys[base + depth_slots - 1]:
-        return
-    if depth_slots == 1:
-        wp.atomic_min(keys, base, key)
         return
     k = key
     for slot in range(depth_slots):
@@ -113,36 +117,57 @@ def offer(keys: wp.array[wp.uint64], base: wp.int32, depth_slots: wp.int32, key:
 
 
 @wp.func
-def row_live(
-    keys: wp.array[wp.uint64], c0: wp.int32, c1: wp.int32, depth_slots: wp.int32, lo: wp.uint64, hi: wp.uint64
-) -> wp.int32:
-    """Bit 0: some low key kept last (slot D - 1) in cells c0..c1 is >= lo; bit 1: some high key is >= hi.
+def row_live(keys: wp.array[wp.uint64], c0: wp.int32, c1: wp.int32, lo: wp.uint64, hi: wp.uint64) -> wp.int32:
+    """Bit 0: some low key of cells c0..c1 is >= lo; bit 1: some high key is >= hi (one key per lamp and cell).
 
     Four cells per step, all eight loads issued before the first compare: with almost no atomics left, the
     depth pass waits on L2 latency, and a warp that used each load in its own iteration stalled once per cell
     (measured: 26% off the warm depth pass, bench/NOTES.md v4). Indices past c1 re-read c1.
     """
+    live = int(0)
+    c = c0
+    while c <= c1:
+        s0 = 2 * c
+        s1 = 2 * wp.min(c + 1, c1)
+        s2 = 2 * wp.min(c + 2, c1)
+        s3 = 2 * wp.min(c + 3, c1)
+        l0 = keys[s0]
+        h0 = keys[s0 + 1]
+        l1 = keys[s1]
+        h1 = keys[s1 + 1]
+        l2 = keys[s2]
+        h2 = keys[s2 + 1]
+        l3 = keys[s3]
+        h3 = keys[s3 + 1]
+        if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
+            live = live | 1
+        if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
+            live = live | 2
+        c += 4
+    return live
+
+
+@wp.func
+def row_live_slots(
+    keys: wp.array[wp.uint64], c0: wp.int32, c1: wp.int32, depth_slots: wp.int32, lo: wp.uint64, hi: wp.uint64
+) -> wp.int32:
+    """``row_live`` for cells that keep ``depth_slots`` keys per lamp: tests the last kept key (slot D - 1), which
+    an offer must beat to enter. Two cells per step."""
     last = depth_slots - 1
     live = int(0)
     c = c0
     while c <= c1:
         s0 = key_slot(c, 0, depth_slots) + last
         s1 = key_slot(wp.min(c + 1, c1), 0, depth_slots) + last
-        s2 = key_slot(wp.min(c + 2, c1), 0, depth_slots) + last
-        s3 = key_slot(wp.min(c + 3, c1), 0, depth_slots) + last
         l0 = keys[s0]
         h0 = keys[s0 + depth_slots]
         l1 = keys[s1]
         h1 = keys[s1 + depth_slots]
-        l2 = keys[s2]
-        h2 = keys[s2 + depth_slots]
-        l3 = keys[s3]
-        h3 = keys[s3 + depth_slots]
-        if wp.max(wp.max(l0, l1), wp.max(l2, l3)) >= lo:
+        if wp.max(l0, l1) >= lo:
             live = live | 1
-        if wp.max(wp.max(h0, h1), wp.max(h2, h3)) >= hi:
+        if wp.max(h0, h1) >= hi:
             live = live | 2
-        c += 4
+        c += 2
     return live
 
 
@@ -327,90 +352,261 @@ def lamp_order_keys(
 
 
 @wp.kernel
-def lamp_depth(
+def lamp_blocks(
     grid: LampGridParams,
-    particles: LampParticles,
-    criterion: wp.int32,
-    lamp_mask: wp.int32,
-    split: wp.int32,
-    depth_slots: wp.int32,
-    order: wp.array[wp.int32],
-    # outputs
     keys: wp.array[wp.uint64],
-    diag: wp.array[wp.int32],
+    # outputs
+    blocks: wp.array[wp.uint64],
 ):
-    """The depth pass: every sphere offers (depth, id) keys to the low and high lamp of every cell its projected
-    disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
-
-    ``split`` 0: one thread per sphere walks the three axes (the v4 pass of bench/NOTES.md). ``split`` s >= 1:
-    s threads share each (sphere, axis) and take its rows in turn; thread t works on the (t % n)-th particle of
-    axis a's ``order`` (``lamp_order_keys``, sorted), or of the caller's order where ``order`` is empty, so that a
-    warp holds particles that read the same rows.
-    """
-    t = wp.tid()
-    n = particles.n
-    share = t / n
-    axis = int(-1)
-    first_row = int(0)
-    row_step = int(1)
-    particle = t - share * n
-    if split > 0:
-        axis = share / split
-        first_row = share - axis * split
-        row_step = split
-        if order.shape[0] > 0:
-            particle = order[axis * n + particle]
-    sphere = frame_sphere(grid, particles, particle)
-    if not sphere.casts:
-        if share == 0 and not inactive(particles, particle):
-            wp.atomic_add(diag, DIAG_INVALID, 1)
-        return
-    if share == 0 and lamp_outside(grid, sphere, lamp_mask):
-        wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-    r = sphere.radius
-    r2 = r * r
-    # A loop of constant length that Warp unrolls: every vector index below is then a literal, which the compiler
-    # keeps in registers. With the axis as a runtime value they went to local memory and the pass took three
-    # times as long (bench/NOTES.md v5).
+    """One thread per 4 x 4 block of cells summarises each lamp's keys after the seed: the largest depth bits of its
+    cells' keys in the high word, a 16-bit mask of its empty cells in the low word. Keys only fall during the depth
+    pass, so the summary stays an upper bound: a sphere whose best depth over its cells in the block loses to it,
+    and that covers no empty cell there, has nothing to offer in the block."""
+    b = wp.tid()
+    blk = grid_block(grid, b)
     for a in range(3):
-        lamp_bits = (lamp_mask >> (2 * a)) & 3
-        if (axis < 0 or axis == a) and lamp_bits != 0:
-            pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-            pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-            pd = sphere.center[a]
-            hu = grid.h_u[a]
-            hv = grid.h_v[a]
-            nu = grid.n_u[a]
-            rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-            for j in range(rows[0] + first_row, rows[1] + 1, row_step):
-                # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
-                # run of cells and the span from w = sqrt(rem) brackets it.
+        if blk[0] == a:
+            for side in range(2):
+                worst = wp.uint64(0)
+                empty = int(0)
+                for jj in range(BLOCK):
+                    j = BLOCK * blk[2] + jj
+                    for ii in range(BLOCK):
+                        i = BLOCK * blk[1] + ii
+                        if i < grid.n_u[a] and j < grid.n_v[a]:
+                            k = keys[2 * (grid.offset[a] + j * grid.n_u[a] + i) + side]
+                            if k == EMPTY_KEY:
+                                empty = empty | (1 << (BLOCK * jj + ii))
+                            else:
+                                worst = wp.max(worst, k >> wp.uint64(32))
+                blocks[2 * b + side] = (worst << wp.uint64(32)) | wp.uint64(empty)
+
+
+@wp.func
+def block_hits(
+    rem: wp.vec4, bi: wp.int32, cols: wp.vec2i, hu: wp.float32, pu: wp.float32, criterion: wp.int32
+) -> wp.vec2:
+    """(mask, best) of block column bi for a block row whose 4 rows have remainders ``rem`` (r^2 - dv^2, < 0 for
+    rows the sphere misses): bit 4 jj + ii is set where the sphere lights cell (ii, jj) of the block, exactly as
+    the row walk decides it, and best is the largest rem - du^2 over those cells (a 16-bit mask is exact in a
+    float32)."""
+    mask = int(0)
+    best = float(-1.0)
+    for ii in range(BLOCK):
+        i = BLOCK * bi + ii
+        if i >= cols[0] and i <= cols[1]:
+            du = cell_offset(i, hu, pu, criterion)
+            du2 = du * du
+            for jj in range(BLOCK):
+                if rem[jj] >= 0.0 and du2 <= rem[jj]:
+                    mask = mask | (1 << (BLOCK * jj + ii))
+                    best = wp.max(best, rem[jj] - du2)
+    return wp.vec2(float(mask), best)
+
+
+@wp.func
+def block_live(hits: wp.vec2, low: wp.uint64, high: wp.uint64, pd: wp.float32, criterion: wp.int32) -> wp.int32:
+    """Which lamps (bit 0 low, bit 1 high) of a block could take an offer from a sphere whose hits there are
+    ``hits``, given the block's summaries: one where it covers an empty cell, or where its best depth does not
+    lose to the block's worst key (ties keep it live)."""
+    mask = int(hits[0])
+    if mask == 0:
+        return 0
+    # No lit cell's depth is below pd - reach (low) or above pd + reach (high): sqrt and subtraction are monotone,
+    # and hits[1] is the largest rem - du^2 that those cells compute themselves.
+    reach = lamp_reach(hits[1], 0.0, criterion)
+    live = int(0)
+    if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (pack_key(pd - reach, 0) >> wp.uint64(32)):
+        live = 1
+    bound = pack_key(-(pd + reach), 0) >> wp.uint64(32)
+    if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= bound:
+        live = live | 2
+    return live
+
+
+@wp.func
+def blocks_live(
+    blocks: wp.array[wp.uint64],
+    first_block: wp.int32,
+    blocks_per_row: wp.int32,
+    hu: wp.float32,
+    hv: wp.float32,
+    pu: wp.float32,
+    pv: wp.float32,
+    pd: wp.float32,
+    r2: wp.float32,
+    rows: wp.vec2i,
+    cols: wp.vec2i,
+    criterion: wp.int32,
+    lamp_bits: wp.int32,
+) -> wp.int32:
+    """The lamps of one grid (bits as ``lamp_bits``) that could take an offer from the sphere anywhere: 0 when the
+    coarse depth buffer hides it everywhere. Four blocks per step with their eight summary loads issued together,
+    done as soon as both lamps are found live. Scalars in, no axis: see ``lamp_depth`` on literal indices."""
+    bi1 = cols[1] / BLOCK
+    live = int(0)
+    for bj in range(rows[0] / BLOCK, rows[1] / BLOCK + 1):
+        rem = wp.vec4(-1.0)
+        for k in range(BLOCK):
+            j = BLOCK * bj + k
+            if j >= rows[0] and j <= rows[1]:
                 dv = cell_offset(j, hv, pv, criterion)
-                rem = r2 - dv * dv
-                if rem < 0.0:
-                    continue
-                w = wp.sqrt(rem)
-                cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-                first = grid.offset[a] + j * nu
-                # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high),
-                # exactly in float32 (sqrt and subtraction are monotone). Where every kept key already beats that
-                # bound, the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
-                reach = lamp_reach(rem, 0.0, criterion)
-                low_bound = pack_key(pd - reach, 0)
-                high_bound = pack_key(-(pd + reach), 0)
-                live = row_live(keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound)
-                live = live & lamp_bits
-                if live == 0:
-                    continue
-                for i in range(cols[0], cols[1] + 1):
-                    du = cell_offset(i, hu, pu, criterion)
-                    if du * du <= rem:
-                        depth = lamp_reach(rem, du, criterion)
-                        c = first + i
-                        if (live & 1) != 0:
-                            offer(keys, key_slot(c, 0, depth_slots), depth_slots, pack_key(pd - depth, particle))
-                        if (live & 2) != 0:
-                            offer(keys, key_slot(c, 1, depth_slots), depth_slots, pack_key(-(pd + depth), particle))
+                rem[k] = r2 - dv * dv
+        first = first_block + bj * blocks_per_row
+        bi = cols[0] / BLOCK
+        while bi <= bi1:
+            # Past the last block column, re-read the last one: a repeat cannot change the answer.
+            b1 = wp.min(bi + 1, bi1)
+            b2 = wp.min(bi + 2, bi1)
+            b3 = wp.min(bi + 3, bi1)
+            l0 = blocks[2 * (first + bi)]
+            h0 = blocks[2 * (first + bi) + 1]
+            l1 = blocks[2 * (first + b1)]
+            h1 = blocks[2 * (first + b1) + 1]
+            l2 = blocks[2 * (first + b2)]
+            h2 = blocks[2 * (first + b2) + 1]
+            l3 = blocks[2 * (first + b3)]
+            h3 = blocks[2 * (first + b3) + 1]
+            live = live | block_live(block_hits(rem, bi, cols, hu, pu, criterion), l0, h0, pd, criterion)
+            live = live | block_live(block_hits(rem, b1, cols, hu, pu, criterion), l1, h1, pd, criterion)
+            live = live | block_live(block_hits(rem, b2, cols, hu, pu, criterion), l2, h2, pd, criterion)
+            live = live | block_live(block_hits(rem, b3, cols, hu, pu, criterion), l3, h3, pd, criterion)
+            if (live & lamp_bits) == lamp_bits:
+                return lamp_bits
+            bi += 4
+    return live & lamp_bits
+
+
+def _depth_kernel(slots: int):
+    """The depth pass, specialised for one key per lamp and cell (``slots`` 1: the criteria's lamps) or generic in
+    ``depth_slots`` (``slots`` 0: the samples of the area estimator). The compiled specialisation drops the slot
+    arithmetic and the chained offers, which the single slot does not need."""
+
+    @wp.kernel
+    def lamp_depth(
+        grid: LampGridParams,
+        particles: LampParticles,
+        criterion: wp.int32,
+        lamp_mask: wp.int32,
+        split: wp.int32,
+        depth_slots: wp.int32,
+        order: wp.array[wp.int32],
+        blocks: wp.array[wp.uint64],
+        # outputs
+        keys: wp.array[wp.uint64],
+        diag: wp.array[wp.int32],
+    ):
+        """The depth pass: every sphere offers (depth, id) keys to the low and high lamp of every cell its projected
+        disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
+
+        ``split`` 0: one thread per sphere walks the three axes (the v4 pass of bench/NOTES.md). ``split`` s >= 1:
+        s threads share each (sphere, axis) and take its rows in turn; thread t works on the (t % n)-th particle of
+        axis a's ``order`` (``lamp_order_keys``, sorted), or of the caller's order where ``order`` is empty, so that a
+        warp holds particles that read the same rows. With ``blocks`` (``lamp_blocks``' summaries), a sphere first
+        asks the coarse depth buffer which lamps of the axis it could reach at all.
+        """
+        t = wp.tid()
+        n = particles.n
+        share = t / n
+        axis = int(-1)
+        first_row = int(0)
+        row_step = int(1)
+        particle = t - share * n
+        if split > 0:
+            axis = share / split
+            first_row = share - axis * split
+            row_step = split
+            if order.shape[0] > 0:
+                particle = order[axis * n + particle]
+        sphere = frame_sphere(grid, particles, particle)
+        if not sphere.casts:
+            if share == 0 and not inactive(particles, particle):
+                wp.atomic_add(diag, DIAG_INVALID, 1)
+            return
+        if share == 0 and lamp_outside(grid, sphere, lamp_mask):
+            wp.atomic_add(diag, DIAG_OUTSIDE, 1)
+        r = sphere.radius
+        r2 = r * r
+        # A loop of constant length that Warp unrolls: every vector index below is then a literal, which the compiler
+        # keeps in registers. With the axis as a runtime value they went to local memory and the pass took three
+        # times as long (bench/NOTES.md v5).
+        for a in range(3):
+            lamp_bits = (lamp_mask >> (2 * a)) & 3
+            if (axis < 0 or axis == a) and lamp_bits != 0:
+                pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+                pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+                pd = sphere.center[a]
+                hu = grid.h_u[a]
+                hv = grid.h_v[a]
+                nu = grid.n_u[a]
+                rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
+                if blocks.shape[0] > 0 and rows[0] <= rows[1]:
+                    # Ask the coarse depth buffer (lamp_blocks) first which lamps the sphere could reach at all.
+                    cols = cell_span(pu - r, pu + r, hu, nu, criterion)
+                    lamp_bits = blocks_live(
+                        blocks,
+                        grid.block_offset[a],
+                        grid.nb_u[a],
+                        hu,
+                        hv,
+                        pu,
+                        pv,
+                        pd,
+                        r2,
+                        rows,
+                        cols,
+                        criterion,
+                        lamp_bits,
+                    )
+                for j in range(rows[0] + first_row, rows[1] + 1, row_step):
+                    # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
+                    # run of cells and the span from w = sqrt(rem) brackets it.
+                    dv = cell_offset(j, hv, pv, criterion)
+                    rem = r2 - dv * dv
+                    if rem < 0.0:
+                        continue
+                    w = wp.sqrt(rem)
+                    cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+                    first = grid.offset[a] + j * nu
+                    # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high),
+                    # exactly in float32 (sqrt and subtraction are monotone). Where every kept key already beats that
+                    # bound, the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
+                    reach = lamp_reach(rem, 0.0, criterion)
+                    low_bound = pack_key(pd - reach, 0)
+                    high_bound = pack_key(-(pd + reach), 0)
+                    live = int(0)
+                    if wp.static(slots == 1):
+                        live = row_live(keys, first + cols[0], first + cols[1], low_bound, high_bound)
+                    else:
+                        live = row_live_slots(
+                            keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound
+                        )
+                    live = live & lamp_bits
+                    if live == 0:
+                        continue
+                    for i in range(cols[0], cols[1] + 1):
+                        du = cell_offset(i, hu, pu, criterion)
+                        if du * du <= rem:
+                            depth = lamp_reach(rem, du, criterion)
+                            c = first + i
+                            low = pack_key(pd - depth, particle)
+                            high = pack_key(-(pd + depth), particle)
+                            if wp.static(slots == 1):
+                                if (live & 1) != 0:
+                                    offer(keys, 2 * c, low)
+                                if (live & 2) != 0:
+                                    offer(keys, 2 * c + 1, high)
+                            else:
+                                if (live & 1) != 0:
+                                    offer_slots(keys, key_slot(c, 0, depth_slots), depth_slots, low)
+                                if (live & 2) != 0:
+                                    offer_slots(keys, key_slot(c, 1, depth_slots), depth_slots, high)
+
+    return lamp_depth
+
+
+lamp_depth = _depth_kernel(1)
+lamp_depth_slots = _depth_kernel(0)
 
 
 @wp.kernel
