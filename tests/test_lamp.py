@@ -127,8 +127,8 @@ def test_cpu_and_cuda_bitwise_equal(cuda_device, rng, criterion):
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
     """However the depth pass shares out its work (one thread per sphere, or 1, 3 or 16 per sphere and axis, in the
-    caller's order or sorted by cell) and whether it culls hidden spheres with the coarse depth buffer, it leaves
-    bitwise the same keys, counts and counters, also warm-started elsewhere."""
+    caller's order or sorted by cell), it leaves bitwise the same keys, counts and counters, also warm-started
+    elsewhere."""
     centers, radii = polydisperse_scene(rng, n=400, extent=6.0, rmin=0.05, rmax=0.8)
     moved = centers + rng.normal(scale=0.05, size=centers.shape)
     for cells_per_diameter in (1.5, 7.0):
@@ -137,12 +137,11 @@ def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
         other, _ = device_arrays(moved - grid.origin, radii, device)
         plain = wl.ShiningLamp(grid, criterion=criterion, split=0, device=device)
         plain.update(pos, rad, in_frame=True)
-        for split, order, culling in ((0, False, True), (1, False, True), (3, True, False), (16, True, True)):
-            lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, order=order, culling=culling, device=device)
+        for split, order in ((1, False), (3, True), (16, False), (16, True)):
+            lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, order=order, device=device)
             lamp.update(other, rad, in_frame=True)
             lamp.update(pos, rad, in_frame=True)
-            assert lamp.split == split and lamp.culling == culling
-            assert (lamp.order.shape[0] == 3 * len(radii)) == (order and split > 0)
+            assert lamp.split == split and (lamp.order.shape[0] == 3 * len(radii)) == order
             np.testing.assert_array_equal(lamp.keys.numpy(), plain.keys.numpy())
             np.testing.assert_array_equal(lamp.counts_numpy(), plain.counts_numpy())
             np.testing.assert_array_equal(lamp.diag.numpy(), plain.diag.numpy())

@@ -5,15 +5,13 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_lamp.kernels.grid import BLOCK, LampGridParams
+from warp_lamp.kernels.grid import LampGridParams
 from warp_lamp.validate import DEFAULT_MAX_BYTES, check_box, check_budget, check_particles, check_vec3
 
-__all__ = ["BYTES_PER_BLOCK", "BYTES_PER_CELL", "LampGrid"]
+__all__ = ["BYTES_PER_CELL", "LampGrid"]
 
 #: Bytes a cell needs on the device: one uint64 key per lamp, two lamps per cell.
 BYTES_PER_CELL = 16
-#: Bytes a 4 x 4 culling block needs: one uint64 summary per lamp.
-BYTES_PER_BLOCK = 16
 
 
 def _read_only(arr: np.ndarray) -> np.ndarray:
@@ -124,8 +122,7 @@ class LampGrid:
     def _setup(self, corner, cell, counts, max_bytes, *, origin):
         counts = np.asarray(counts, dtype=np.float64)
         cells = int(np.sum(counts[:, 0] * counts[:, 1]))
-        blocks = int(np.sum(((counts[:, 0] + BLOCK - 1) // BLOCK) * ((counts[:, 1] + BLOCK - 1) // BLOCK)))
-        need = cells * BYTES_PER_CELL + blocks * BYTES_PER_BLOCK
+        need = cells * BYTES_PER_CELL
         check_budget(
             need, max_bytes, f"grid: {cells:,} cells need {need:,} bytes", "raise max_bytes or use larger cells"
         )
@@ -169,15 +166,8 @@ class LampGrid:
 
     @property
     def nbytes(self) -> int:
-        """Device memory of the per-cell arrays [bytes], known before anything is allocated: the keys, and the
-        summaries of the 4 x 4 culling blocks."""
-        return self.n_cells * BYTES_PER_CELL + self.n_blocks * BYTES_PER_BLOCK
-
-    @property
-    def n_blocks(self) -> int:
-        """Culling blocks (4 x 4 cells) of the three grids together."""
-        nb = (self.counts + (BLOCK - 1)) // BLOCK
-        return int(np.sum(nb[:, 0] * nb[:, 1]))
+        """Device memory of the per-cell arrays [bytes], known before anything is allocated."""
+        return self.n_cells * BYTES_PER_CELL
 
     @property
     def offsets(self) -> np.ndarray:
@@ -208,12 +198,6 @@ class LampGrid:
         p.n_v = wp.vec3i(*(int(x) for x in self.counts[:, 1]))
         p.offset = wp.vec3i(*(int(x) for x in self.offsets))
         p.n_cells = self.n_cells
-        nb = (self.counts + (BLOCK - 1)) // BLOCK
-        sizes = nb[:, 0] * nb[:, 1]
-        p.nb_u = wp.vec3i(*(int(x) for x in nb[:, 0]))
-        p.nb_v = wp.vec3i(*(int(x) for x in nb[:, 1]))
-        p.block_offset = wp.vec3i(0, int(sizes[0]), int(sizes[0] + sizes[1]))
-        p.n_blocks = int(sizes.sum())
         return p
 
     def cell_centers(self, axis: int) -> tuple[np.ndarray, np.ndarray]:

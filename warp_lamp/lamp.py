@@ -155,11 +155,6 @@ def _auto_order(n: int, device) -> bool:
     return device.is_cuda and n >= _LARGE_BODY
 
 
-def _auto_culling(n: int, device) -> bool:
-    """The coarse depth buffer on a GPU for large bodies, whose hidden spheres are most of the work."""
-    return device.is_cuda and n >= _LARGE_BODY
-
-
 class ShiningLamp:
     """Shining-lamp pressure boundary for Warp particle simulators: arrays in, forces added in place.
 
@@ -184,7 +179,6 @@ class ShiningLamp:
         device=None,
         split: int | str = "auto",
         order: bool | str = "auto",
-        culling: bool | str = "auto",
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -204,16 +198,11 @@ class ShiningLamp:
                 sort), so that a warp's particles read the same rows: at the first update outside a capture, and
                 again whenever :meth:`reorder` is called. ``"auto"``: on a GPU. The result does not depend on it;
                 a body that moves far from where it was sorted only loses speed.
-            culling: Before walking its rows, a sphere asks a coarse depth buffer (4 x 4 blocks of cells, built
-                after the seed) which lamps it could reach at all, and stops where it is hidden everywhere. The
-                result does not depend on it.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         if order not in ("auto", True, False):
             raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
-        if culling not in ("auto", True, False):
-            raise ValueError(f"culling: expected 'auto', True or False, got {culling!r}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
             raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
         self.grid = grid
@@ -223,8 +212,6 @@ class ShiningLamp:
         self._split = split
         self.split = 0
         self._order = order
-        self._culling = culling
-        self.culling = False
         self.order = wp.empty(0, dtype=wp.int32, device=self.device)
         self._no_order = self.order
         self._order_keys = wp.empty(0, dtype=wp.int32, device=self.device)
@@ -234,8 +221,6 @@ class ShiningLamp:
         self._area = wp.vec3d(*grid.cell_area)
         d = self.device
         self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        self.blocks = wp.zeros(2 * grid.n_blocks, dtype=wp.uint64, device=d)
-        self._no_blocks = wp.empty(0, dtype=wp.uint64, device=d)
         self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
@@ -254,7 +239,6 @@ class ShiningLamp:
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
-            self.culling = bool(_auto_culling(n, self.device) if self._culling == "auto" else self._culling)
             sort = _auto_order(n, self.device) if self._order == "auto" else self._order
             if sort and self.split > 0:
                 self.order = wp.empty(3 * n, dtype=wp.int32, device=self.device)
@@ -336,8 +320,7 @@ class ShiningLamp:
     # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, re-evaluate each cell's last owner at the current positions, and (with
-        culling) summarise the seeded keys per block."""
+        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
         grid, particles = self._inputs
         d = self.device
         wp.launch(
@@ -347,14 +330,6 @@ class ShiningLamp:
             outputs=[self.keys, self.counts, self.diag],
             device=d,
         )
-        if self.culling:
-            wp.launch(
-                lamp_kernels.lamp_blocks,
-                dim=self.grid.n_blocks,
-                inputs=[grid, self.keys],
-                outputs=[self.blocks],
-                device=d,
-            )
 
     def launch_depth(self) -> None:
         """Update step 2: every sphere offers its depth to every cell it covers."""
@@ -362,18 +337,9 @@ class ShiningLamp:
         if self.n == 0:
             return
         wp.launch(
-            lamp_kernels.lamp_depth,
+            lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere,
             dim=self.n * (3 * self.split if self.split else 1),
-            inputs=[
-                grid,
-                particles,
-                self.criterion,
-                self.lamp_mask,
-                self.split,
-                1,
-                self._launch_order(),
-                self.blocks if self.culling else self._no_blocks,
-            ],
+            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._launch_order()],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,

@@ -23,14 +23,6 @@ class LampGridParams:
     n_v: wp.vec3i
     offset: wp.vec3i  # first flat cell of each grid
     n_cells: wp.int32  # cells of the three grids together
-    nb_u: wp.vec3i  # culling blocks (BLOCK x BLOCK cells) per grid along u and v
-    nb_v: wp.vec3i
-    block_offset: wp.vec3i  # first block of each grid
-    n_blocks: wp.int32
-
-
-#: Cells per side of a culling block: the empty cells of a 4 x 4 block fit a 16-bit mask.
-BLOCK = wp.constant(4)
 
 
 @wp.func
@@ -44,16 +36,3 @@ def grid_cell(grid: LampGridParams, c: wp.int32) -> wp.vec3i:
     local = c - grid.offset[a]
     j = local / grid.n_u[a]
     return wp.vec3i(a, local - j * grid.n_u[a], j)
-
-
-@wp.func
-def grid_block(grid: LampGridParams, b: wp.int32) -> wp.vec3i:
-    """(axis a, block column bi, block row bj) of flat block b."""
-    a = int(0)
-    if b >= grid.block_offset[2]:
-        a = 2
-    elif b >= grid.block_offset[1]:
-        a = 1
-    local = b - grid.block_offset[a]
-    bj = local / grid.nb_u[a]
-    return wp.vec3i(a, local - bj * grid.nb_u[a], bj)

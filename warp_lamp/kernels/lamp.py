@@ -9,8 +9,8 @@ one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. 
 import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
-from warp_lamp.kernels.grid import BLOCK, LampGridParams, grid_block, grid_cell
-from warp_lamp.kernels.keys import EMPTY_KEY, LOW_WORD, key_owner, pack_key
+from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -351,136 +351,11 @@ def lamp_order_keys(
         cell_keys[p] = grid.offset[a] + j * grid.n_u[a] + i
 
 
-@wp.kernel
-def lamp_blocks(
-    grid: LampGridParams,
-    keys: wp.array[wp.uint64],
-    # outputs
-    blocks: wp.array[wp.uint64],
-):
-    """One thread per 4 x 4 block of cells summarises each lamp's keys after the seed: the largest depth bits of its
-    cells' keys in the high word, a 16-bit mask of its empty cells in the low word. Keys only fall during the depth
-    pass, so the summary stays an upper bound: a sphere whose best depth over its cells in the block loses to it,
-    and that covers no empty cell there, has nothing to offer in the block."""
-    b = wp.tid()
-    blk = grid_block(grid, b)
-    for a in range(3):
-        if blk[0] == a:
-            for side in range(2):
-                worst = wp.uint64(0)
-                empty = int(0)
-                for jj in range(BLOCK):
-                    j = BLOCK * blk[2] + jj
-                    for ii in range(BLOCK):
-                        i = BLOCK * blk[1] + ii
-                        if i < grid.n_u[a] and j < grid.n_v[a]:
-                            k = keys[2 * (grid.offset[a] + j * grid.n_u[a] + i) + side]
-                            if k == EMPTY_KEY:
-                                empty = empty | (1 << (BLOCK * jj + ii))
-                            else:
-                                worst = wp.max(worst, k >> wp.uint64(32))
-                blocks[2 * b + side] = (worst << wp.uint64(32)) | wp.uint64(empty)
-
-
-@wp.func
-def block_hits(
-    rem: wp.vec4, bi: wp.int32, cols: wp.vec2i, hu: wp.float32, pu: wp.float32, criterion: wp.int32
-) -> wp.vec2:
-    """(mask, best) of block column bi for a block row whose 4 rows have remainders ``rem`` (r^2 - dv^2, < 0 for
-    rows the sphere misses): bit 4 jj + ii is set where the sphere lights cell (ii, jj) of the block, exactly as
-    the row walk decides it, and best is the largest rem - du^2 over those cells (a 16-bit mask is exact in a
-    float32)."""
-    mask = int(0)
-    best = float(-1.0)
-    for ii in range(BLOCK):
-        i = BLOCK * bi + ii
-        if i >= cols[0] and i <= cols[1]:
-            du = cell_offset(i, hu, pu, criterion)
-            du2 = du * du
-            for jj in range(BLOCK):
-                if rem[jj] >= 0.0 and du2 <= rem[jj]:
-                    mask = mask | (1 << (BLOCK * jj + ii))
-                    best = wp.max(best, rem[jj] - du2)
-    return wp.vec2(float(mask), best)
-
-
-@wp.func
-def block_live(hits: wp.vec2, low: wp.uint64, high: wp.uint64, pd: wp.float32, criterion: wp.int32) -> wp.int32:
-    """Which lamps (bit 0 low, bit 1 high) of a block could take an offer from a sphere whose hits there are
-    ``hits``, given the block's summaries: one where it covers an empty cell, or where its best depth does not
-    lose to the block's worst key (ties keep it live)."""
-    mask = int(hits[0])
-    if mask == 0:
-        return 0
-    # No lit cell's depth is below pd - reach (low) or above pd + reach (high): sqrt and subtraction are monotone,
-    # and hits[1] is the largest rem - du^2 that those cells compute themselves.
-    reach = lamp_reach(hits[1], 0.0, criterion)
-    live = int(0)
-    if (mask & wp.int32(low & LOW_WORD)) != 0 or (low >> wp.uint64(32)) >= (pack_key(pd - reach, 0) >> wp.uint64(32)):
-        live = 1
-    bound = pack_key(-(pd + reach), 0) >> wp.uint64(32)
-    if (mask & wp.int32(high & LOW_WORD)) != 0 or (high >> wp.uint64(32)) >= bound:
-        live = live | 2
-    return live
-
-
-@wp.func
-def blocks_live(
-    blocks: wp.array[wp.uint64],
-    first_block: wp.int32,
-    blocks_per_row: wp.int32,
-    hu: wp.float32,
-    hv: wp.float32,
-    pu: wp.float32,
-    pv: wp.float32,
-    pd: wp.float32,
-    r2: wp.float32,
-    rows: wp.vec2i,
-    cols: wp.vec2i,
-    criterion: wp.int32,
-    lamp_bits: wp.int32,
-) -> wp.int32:
-    """The lamps of one grid (bits as ``lamp_bits``) that could take an offer from the sphere anywhere: 0 when the
-    coarse depth buffer hides it everywhere. Four blocks per step with their eight summary loads issued together,
-    done as soon as both lamps are found live. Scalars in, no axis: see ``lamp_depth`` on literal indices."""
-    bi1 = cols[1] / BLOCK
-    live = int(0)
-    for bj in range(rows[0] / BLOCK, rows[1] / BLOCK + 1):
-        rem = wp.vec4(-1.0)
-        for k in range(BLOCK):
-            j = BLOCK * bj + k
-            if j >= rows[0] and j <= rows[1]:
-                dv = cell_offset(j, hv, pv, criterion)
-                rem[k] = r2 - dv * dv
-        first = first_block + bj * blocks_per_row
-        bi = cols[0] / BLOCK
-        while bi <= bi1:
-            # Past the last block column, re-read the last one: a repeat cannot change the answer.
-            b1 = wp.min(bi + 1, bi1)
-            b2 = wp.min(bi + 2, bi1)
-            b3 = wp.min(bi + 3, bi1)
-            l0 = blocks[2 * (first + bi)]
-            h0 = blocks[2 * (first + bi) + 1]
-            l1 = blocks[2 * (first + b1)]
-            h1 = blocks[2 * (first + b1) + 1]
-            l2 = blocks[2 * (first + b2)]
-            h2 = blocks[2 * (first + b2) + 1]
-            l3 = blocks[2 * (first + b3)]
-            h3 = blocks[2 * (first + b3) + 1]
-            live = live | block_live(block_hits(rem, bi, cols, hu, pu, criterion), l0, h0, pd, criterion)
-            live = live | block_live(block_hits(rem, b1, cols, hu, pu, criterion), l1, h1, pd, criterion)
-            live = live | block_live(block_hits(rem, b2, cols, hu, pu, criterion), l2, h2, pd, criterion)
-            live = live | block_live(block_hits(rem, b3, cols, hu, pu, criterion), l3, h3, pd, criterion)
-            if (live & lamp_bits) == lamp_bits:
-                return lamp_bits
-            bi += 4
-    return live & lamp_bits
-
-
-def _depth_kernel(slots: int):
-    """The depth pass, specialised for one key per lamp and cell (``slots`` 1: the criteria's lamps) or generic in
-    ``depth_slots`` (``slots`` 0: the samples of the area estimator). The compiled specialisation drops the slot
-    arithmetic and the chained offers, which the single slot does not need."""
+def _depth_kernel(slots: int, shared: bool):
+    """The depth pass, compiled for one key per lamp and cell (``slots`` 1: the criteria's lamps) or generic in
+    ``depth_slots`` (``slots`` 0: the samples of the area estimator), and for one thread per sphere (``shared``
+    False) or ``split`` threads per (sphere, axis). Each specialisation drops code that the others need: the GPU
+    measured every unused branch in registers (bench/NOTES.md v5)."""
 
     @wp.kernel
     def lamp_depth(
@@ -491,7 +366,6 @@ def _depth_kernel(slots: int):
         split: wp.int32,
         depth_slots: wp.int32,
         order: wp.array[wp.int32],
-        blocks: wp.array[wp.uint64],
         # outputs
         keys: wp.array[wp.uint64],
         diag: wp.array[wp.int32],
@@ -502,17 +376,18 @@ def _depth_kernel(slots: int):
         ``split`` 0: one thread per sphere walks the three axes (the v4 pass of bench/NOTES.md). ``split`` s >= 1:
         s threads share each (sphere, axis) and take its rows in turn; thread t works on the (t % n)-th particle of
         axis a's ``order`` (``lamp_order_keys``, sorted), or of the caller's order where ``order`` is empty, so that a
-        warp holds particles that read the same rows. With ``blocks`` (``lamp_blocks``' summaries), a sphere first
-        asks the coarse depth buffer which lamps of the axis it could reach at all.
+        warp holds particles that read the same rows.
         """
         t = wp.tid()
         n = particles.n
-        share = t / n
+        share = int(0)
         axis = int(-1)
         first_row = int(0)
         row_step = int(1)
-        particle = t - share * n
-        if split > 0:
+        particle = t
+        if wp.static(shared):
+            share = t / n
+            particle = t - share * n
             axis = share / split
             first_row = share - axis * split
             row_step = split
@@ -540,24 +415,6 @@ def _depth_kernel(slots: int):
                 hv = grid.h_v[a]
                 nu = grid.n_u[a]
                 rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-                if blocks.shape[0] > 0 and rows[0] <= rows[1]:
-                    # Ask the coarse depth buffer (lamp_blocks) first which lamps the sphere could reach at all.
-                    cols = cell_span(pu - r, pu + r, hu, nu, criterion)
-                    lamp_bits = blocks_live(
-                        blocks,
-                        grid.block_offset[a],
-                        grid.nb_u[a],
-                        hu,
-                        hv,
-                        pu,
-                        pv,
-                        pd,
-                        r2,
-                        rows,
-                        cols,
-                        criterion,
-                        lamp_bits,
-                    )
                 for j in range(rows[0] + first_row, rows[1] + 1, row_step):
                     # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
                     # run of cells and the span from w = sqrt(rem) brackets it.
@@ -605,8 +462,9 @@ def _depth_kernel(slots: int):
     return lamp_depth
 
 
-lamp_depth = _depth_kernel(1)
-lamp_depth_slots = _depth_kernel(0)
+lamp_depth_sphere = _depth_kernel(1, False)
+lamp_depth = _depth_kernel(1, True)
+lamp_depth_slots = _depth_kernel(0, True)
 
 
 @wp.kernel
