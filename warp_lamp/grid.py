@@ -6,7 +6,14 @@ import numpy as np
 import warp as wp
 
 from warp_lamp.kernels.grid import LampGridParams
-from warp_lamp.validate import DEFAULT_MAX_BYTES, check_box, check_budget, check_particles, check_vec3
+from warp_lamp.validate import (
+    DEFAULT_MAX_BYTES,
+    check_box,
+    check_budget,
+    check_particles,
+    check_vec3,
+    lamp_rotation,
+)
 
 __all__ = ["BYTES_PER_CELL", "LampGrid"]
 
@@ -30,14 +37,17 @@ class LampGrid:
     allocated, and its arrays are read-only, so that the check cannot be bypassed.
     """
 
-    def __init__(self, lower, upper, cell_size, *, max_bytes: int = DEFAULT_MAX_BYTES):
+    def __init__(self, lower, upper, cell_size, *, rotation=None, max_bytes: int = DEFAULT_MAX_BYTES):
         """Box form: every grid covers the box, cells start at ``lower`` and are exactly ``cell_size`` wide.
 
         Args:
-            lower: Lower corner of the box [m], 3 values.
+            lower: Lower corner of the box [m], 3 values, in frame coordinates (see ``rotation``).
             upper: Upper corner of the box [m], 3 values; the grid reaches ``ceil((upper-lower)/cell_size)``
                 cells, so it may end a little past ``upper``.
-            cell_size: Cell edge [m], a scalar or one per global axis.
+            cell_size: Cell edge [m], a scalar or one per frame axis.
+            rotation: Orientation of the lamp frame: a 3 x 3 rotation matrix whose columns are the lamp axes in
+                world coordinates, or a unit quaternion (x, y, z, w); the identity by default. A world point x has
+                frame coordinates R^T x, and the box, cells and lamps live in the frame.
             max_bytes: Budget for the per-cell arrays [bytes]; a larger grid raises ValueError.
         """
         lower, upper = check_box(lower, upper)
@@ -47,16 +57,17 @@ class LampGrid:
         corner = np.array([[lower[u], lower[v]] for u, v in axes])
         cell = np.array([[h[u], h[v]] for u, v in axes])
         counts = np.array([[n[u], n[v]] for u, v in axes])
-        self._setup(corner, cell, counts, max_bytes, origin=lower)
+        self._setup(corner, cell, counts, max_bytes, origin=lower, rotation=rotation)
 
     @classmethod
-    def from_grids(cls, corners, lengths, counts, *, max_bytes: int = DEFAULT_MAX_BYTES) -> LampGrid:
+    def from_grids(cls, corners, lengths, counts, *, rotation=None, max_bytes: int = DEFAULT_MAX_BYTES) -> LampGrid:
         """The memo's form: each grid with its own corner, lengths and cell counts (3 x 6 = 18 numbers).
 
         Args:
             corners: Lower-left corner of grid a in its (u, v) axes [m], shape (3, 2).
             lengths: Extent of grid a along (u, v) [m], shape (3, 2).
             counts: Number of cells of grid a along (u, v), shape (3, 2), integers >= 1.
+            rotation: Orientation of the lamp frame, as for the box form.
             max_bytes: Budget for the per-cell arrays [bytes].
         """
         corners = np.asarray(corners, dtype=np.float64)
@@ -76,7 +87,7 @@ class LampGrid:
             raise ValueError("counts: must be integers")
         origin = np.array([min(corners[(a + 2) % 3, 0], corners[(a + 1) % 3, 1]) for a in range(3)])
         self = cls.__new__(cls)
-        self._setup(corners, lengths / counts_f, counts_f, max_bytes, origin=origin)
+        self._setup(corners, lengths / counts_f, counts_f, max_bytes, origin=origin, rotation=rotation)
         return self
 
     @classmethod
@@ -87,6 +98,7 @@ class LampGrid:
         *,
         cells_per_diameter: float = 4,
         margin: float | None = None,
+        rotation=None,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ) -> LampGrid:
         """A box grid around the particles, cell size = mean diameter / ``cells_per_diameter``.
@@ -97,6 +109,7 @@ class LampGrid:
             cells_per_diameter: Cells per mean particle diameter (the memo studies 2 ... 16).
             margin: Free space around the particles' bounding box [m]; defaults to one mean diameter, so that
                 particles can move a little between refits without poking out.
+            rotation: Orientation of the lamp frame (as for the box form): the box is fitted in that frame.
             max_bytes: Budget for the per-cell arrays [bytes].
         """
         centers, radii = check_particles(centers, radii)
@@ -104,6 +117,8 @@ class LampGrid:
             raise ValueError("centers: need at least one particle to fit a grid")
         if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
             raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
+        rotation = lamp_rotation(rotation)
+        centers = centers @ rotation  # frame coordinates: R^T x for each row x
         diameter = 2.0 * float(np.mean(radii))
         margin = diameter if margin is None else float(margin)
         if not (np.isfinite(margin) and margin >= 0):
@@ -117,9 +132,9 @@ class LampGrid:
         # can bring an extreme onto an edge.
         n = np.floor((hi - lo) / h) + 1.0
         lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
-        return cls(lower, lower + n * h, h, max_bytes=max_bytes)
+        return cls(lower, lower + n * h, h, rotation=rotation, max_bytes=max_bytes)
 
-    def _setup(self, corner, cell, counts, max_bytes, *, origin):
+    def _setup(self, corner, cell, counts, max_bytes, *, origin, rotation):
         counts = np.asarray(counts, dtype=np.float64)
         cells = int(np.sum(counts[:, 0] * counts[:, 1]))
         need = cells * BYTES_PER_CELL
@@ -128,6 +143,7 @@ class LampGrid:
         )
         if cells >= 2**30:
             raise ValueError(f"grid: {cells:,} cells, over the 2**30 that int32 cell and key indices allow")
+        self._rotation = _read_only(lamp_rotation(rotation))
         self._origin = _read_only(np.asarray(origin, dtype=np.float64))
         self._corner = _read_only(np.asarray(corner, dtype=np.float64))
         self._cell = _read_only(np.asarray(cell, dtype=np.float64))
@@ -135,14 +151,25 @@ class LampGrid:
 
     @property
     def origin(self) -> np.ndarray:
-        """Frame origin [m], shape (3,), float64: ``lower`` in the box form.
+        """Frame origin [m], shape (3,), float64, in frame coordinates: ``lower`` in the box form.
 
-        :func:`~warp_lamp.lamp_forces` subtracts it in float64 before casting to float32, so precision follows
-        the body, not its distance from zero. :class:`~warp_lamp.ShiningLamp` takes float32 positions and
-        subtracts ``float32(origin)`` on the device; it agrees bitwise with ``lamp_forces`` when float32 holds the
-        origin exactly.
+        A world point x sits at ``R^T x - origin`` in the grid's local coordinates (R = :attr:`rotation`).
+        :func:`~warp_lamp.lamp_forces` does that in float64 before casting to float32, so precision follows the
+        body, not its distance from zero. :class:`~warp_lamp.ShiningLamp` takes float32 world positions and does it
+        on the device in float32 (with ``float32(R)`` and ``float32(R origin)``); with the identity it agrees
+        bitwise with ``lamp_forces`` when float32 holds the origin exactly.
         """
         return self._origin
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Orientation of the lamp frame: columns are the lamp axes in world coordinates, shape (3, 3), float64."""
+        return self._rotation
+
+    @property
+    def world_origin(self) -> np.ndarray:
+        """The frame origin in world coordinates [m], ``R origin``, shape (3,), float64."""
+        return self._rotation @ self._origin
 
     @property
     def corner(self) -> np.ndarray:
@@ -180,24 +207,72 @@ class LampGrid:
         """Cell area of each grid [m^2], shape (3,)."""
         return self.cell[:, 0] * self.cell[:, 1]
 
-    def params(self, *, in_frame: bool = False) -> LampGridParams:
-        """The grid as the kernels take it, in frame coordinates (global minus :attr:`origin`).
+    @property
+    def is_box(self) -> bool:
+        """Whether the three grids tile one box with one cell size per frame axis (the box form), as the
+        following grid and the wetted-surface mode need."""
+        for a in range(3):
+            for k, d in enumerate(((a + 1) % 3, (a + 2) % 3)):
+                if self.corner[a, k] != self.origin[d]:
+                    return False
+                b = (d + 1) % 3  # another grid spanning axis d
+                kb = [(b + 1) % 3, (b + 2) % 3].index(d)
+                if self.cell[a, k] != self.cell[b, kb] or self.counts[a, k] != self.counts[b, kb]:
+                    return False
+        return True
+
+    @property
+    def box_cell(self) -> np.ndarray:
+        """Cell size per frame axis [m], shape (3,), for the box form."""
+        return np.array([self.cell[(d + 2) % 3, 0] for d in range(3)])
+
+    @property
+    def box_counts(self) -> np.ndarray:
+        """Cells per frame axis, shape (3,), for the box form."""
+        return np.array([int(self.counts[(d + 2) % 3, 0]) for d in range(3)])
+
+    @property
+    def n_samples(self) -> int:
+        """Cell corners of the three grids together: the sample rays of the area criterion."""
+        return int(np.sum((self.counts[:, 0] + 1) * (self.counts[:, 1] + 1)))
+
+    def pose_arrays(self, device, *, in_frame: bool = False) -> tuple[wp.array, wp.array]:
+        """The frame's pose as the kernels read it: (origin, rotation), one ``vec3`` and one ``mat33`` in float32 on
+        ``device``: the frame origin in world coordinates and :attr:`rotation`, or zero and the identity where
+        positions arrive ``in_frame`` (already ``R^T x - origin``)."""
+        if in_frame:
+            origin, rotation = np.zeros(3), np.eye(3)
+        else:
+            origin, rotation = self.world_origin, self.rotation
+        return (
+            wp.array([origin.astype(np.float32)], dtype=wp.vec3, device=device),
+            wp.array([rotation.astype(np.float32)], dtype=wp.mat33, device=device),
+        )
+
+    def params(self, origin: wp.array, rotation: wp.array, *, corners: bool = False) -> LampGridParams:
+        """The grid as the kernels take it, in frame coordinates, reading the frame's pose from ``origin`` and
+        ``rotation`` (:meth:`pose_arrays`, or arrays a simulator updates between replays).
 
         Args:
-            in_frame: The kernels will receive positions already in frame coordinates (so they subtract nothing);
-                otherwise they subtract ``float32(origin)`` from world positions.
+            origin: The frame origin in world coordinates [m], warp array of one ``vec3``.
+            rotation: The frame's orientation, warp array of one ``mat33``.
+            corners: Describe the grid of the cells' corners instead ((n_u + 1) x (n_v + 1) samples per grid, the
+                same corner and spacing), on which the area criterion's depth pass runs with ``RAY_CORNER``.
         """
+        counts = self.counts + (1 if corners else 0)
+        sizes = counts[:, 0] * counts[:, 1]
         local = self.corner - np.array([[self.origin[(a + 1) % 3], self.origin[(a + 2) % 3]] for a in range(3)])
         p = LampGridParams()
-        p.origin = wp.vec3(0.0, 0.0, 0.0) if in_frame else wp.vec3(*self.origin.astype(np.float32))
+        p.origin = origin
+        p.rotation = rotation
         p.corner_u = wp.vec3(*local[:, 0])
         p.corner_v = wp.vec3(*local[:, 1])
         p.h_u = wp.vec3(*self.cell[:, 0])
         p.h_v = wp.vec3(*self.cell[:, 1])
-        p.n_u = wp.vec3i(*(int(x) for x in self.counts[:, 0]))
-        p.n_v = wp.vec3i(*(int(x) for x in self.counts[:, 1]))
-        p.offset = wp.vec3i(*(int(x) for x in self.offsets))
-        p.n_cells = self.n_cells
+        p.n_u = wp.vec3i(*(int(x) for x in counts[:, 0]))
+        p.n_v = wp.vec3i(*(int(x) for x in counts[:, 1]))
+        p.offset = wp.vec3i(0, int(sizes[0]), int(sizes[0] + sizes[1]))
+        p.n_cells = int(sizes.sum())
         return p
 
     def cell_centers(self, axis: int) -> tuple[np.ndarray, np.ndarray]:
@@ -205,8 +280,14 @@ class LampGrid:
         (cu, cv), (hu, hv), (nu, nv) = self.corner[axis], self.cell[axis], self.counts[axis]
         return cu + (np.arange(nu) + 0.5) * hu, cv + (np.arange(nv) + 0.5) * hv
 
+    def to_frame(self, centers) -> np.ndarray:
+        """Local frame coordinates of world points [m], ``R^T (x - R origin)`` in float64 (the subtraction first,
+        so that precision follows the body), shape (N, 3): what :func:`~warp_lamp.lamp_forces` casts to float32."""
+        return (np.asarray(centers, dtype=np.float64) - self.world_origin) @ self._rotation
+
     def __repr__(self) -> str:
+        rot = "" if np.array_equal(self.rotation, np.eye(3)) else f", rotation={self.rotation.tolist()}"
         return (
             f"LampGrid(origin={self.origin.tolist()}, cells={self.counts.tolist()}, "
-            f"cell={self.cell.tolist()}, {self.nbytes:,} bytes)"
+            f"cell={self.cell.tolist()}{rot}, {self.nbytes:,} bytes)"
         )

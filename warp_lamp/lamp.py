@@ -8,9 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from warp_lamp.frames import lamp_force_factors, lamp_pressure
 from warp_lamp.grid import LampGrid
+from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
-from warp_lamp.validate import check_particles, check_pressure
+from warp_lamp.kernels.footprint import RAY_CORNER
+from warp_lamp.validate import DEFAULT_MAX_BYTES, check_budget, check_particles, check_pressure
 
 __all__ = [
     "LAMPS",
@@ -53,9 +56,20 @@ def lamp_mask(lamps) -> int:
     return mask
 
 
-def _check_criterion(criterion) -> int:
+#: The area criterion's fixed-point units per cell, per resolver (sub-points: S^2, one per sub-point).
+AREA_EXACT_UNIT = 4096
+#: Resolvers of the area criterion.
+AREA_RESOLVERS = ("subpoints", "exact")
+
+
+def _check_criterion(criterion) -> int | str:
+    if isinstance(criterion, str) and criterion == "area":
+        return "area"
     if criterion not in (0, 1) or isinstance(criterion, bool):
-        raise ValueError(f"criterion: expected 0 (cell overlaps disk) or 1 (cell centre ray), got {criterion!r}")
+        raise ValueError(
+            f"criterion: expected 0 (cell overlaps disk), 1 (cell centre ray) or 'area' (visible area), got "
+            f"{criterion!r}"
+        )
     return int(criterion)
 
 
@@ -79,20 +93,27 @@ def _decode_depth(keys: np.ndarray) -> np.ndarray:
     return bits.view(np.float32).astype(np.float64)
 
 
-def lamp_owner_maps(keys: np.ndarray, grid: LampGrid) -> tuple[dict, dict]:
+def lamp_owner_maps(keys: np.ndarray, grid: LampGrid, *, corners: bool = False) -> tuple[dict, dict]:
     """Decode a lamp key array (two uint64 keys per cell, as ``ShiningLamp.keys``) into per-lamp maps.
+
+    Args:
+        keys: uint64 keys, two per cell (or per corner sample).
+        grid: The lamp grids.
+        corners: The keys belong to the (n_u + 1) x (n_v + 1) corner samples (the area criterion's slot 0).
 
     Returns:
         ``(owners, depths)``: per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v),
-        and the global coordinate along the lamp's axis where its ray meets its owner [m] (NaN where unlit).
+        and the coordinate along the lamp's axis where its ray meets its owner, in the grid's frame [m] (NaN where
+        unlit).
     """
     owners, depths = {}, {}
+    counts = grid.counts + (1 if corners else 0)
+    first = np.concatenate([[0], np.cumsum(counts[:, 0] * counts[:, 1])[:2]])
     for a in range(3):
-        nu, nv = (int(x) for x in grid.counts[a])
-        first = int(grid.offsets[a])
+        nu, nv = (int(x) for x in counts[a])
         for side in range(2):
             name = LAMPS[2 * a + side]
-            k = keys[2 * first + side : 2 * (first + nu * nv) : 2]
+            k = keys[2 * first[a] + side : 2 * (first[a] + nu * nv) : 2]
             hit = k != _EMPTY
             own = np.where(hit, (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
             dep = _decode_depth(k) * (1.0 if side == 0 else -1.0) + grid.origin[a]
@@ -106,27 +127,35 @@ class LampDiagnostics:
     """What the last update found; built on demand from device arrays, outside the hot path.
 
     Attributes:
-        counts: Signed lit-cell counts per particle and axis, shape (N, 3), int64 (+1 per low-lamp cell,
-            -1 per high-lamp cell).
-        surface: Whether each particle is lit by any lamp that is on, shape (N,).
-        owners: Per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v).
-        depths: Per lamp name, the global coordinate along the lamp's axis where its ray meets its owner [m]
-            (NaN where unlit), shape (n_u, n_v).
-        lit: Per lamp name, the number of lit cells.
+        counts: Signed counts per particle and axis, shape (N, 3), int64: +1 per low-lamp cell and -1 per high-lamp
+            cell for criteria 0 and 1; fixed-point units of ``unit`` per cell for the area criterion.
+        unit: Counts per whole cell (1, or the area criterion's units).
+        surface: Whether each particle is lit by any lamp that is on (for the area criterion: holds the first
+            slot of some corner sample).
+        owners: Per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v) (for the area
+            criterion: of each corner sample's first slot, shape (n_u + 1, n_v + 1)).
+        depths: Per lamp name, the coordinate along the lamp's axis where its ray meets its owner, in the grid's
+            frame [m] (NaN where unlit), shaped as ``owners``.
+        lit: Per lamp name, the number of lit cells (or corner samples).
         invalid: Particles skipped as invalid (non-finite position or radius, radius <= 0).
         outside: Particles whose projected disk pokes outside at least one grid.
-        force: Resultant force [N], shape (3,), when a pressure was given.
+        area_overflow: Area criterion: cells whose seeds were more than the kernel keeps (the front ones are kept).
+        area_one_sided: Area criterion: cells where one lamp had units to give and the other nothing (neither pays).
+        force: Resultant force in world coordinates [N], shape (3,), when a pressure was given.
         moment: Resultant moment about ``moment_origin`` [N m], shape (3,), when positions and pressure were given.
-        moment_origin: Point the moment is taken about [m] (the mean active particle centre by default).
+        moment_origin: Point the moment is taken about [m] (the mean lit particle centre by default).
     """
 
     counts: np.ndarray
+    unit: int
     surface: np.ndarray
     owners: dict
     depths: dict
     lit: dict
     invalid: int
     outside: int
+    area_overflow: int = 0
+    area_one_sided: int = 0
     force: np.ndarray | None = None
     moment: np.ndarray | None = None
     moment_origin: np.ndarray | None = None
@@ -139,6 +168,8 @@ _TARGET_THREADS = 1 << 18
 _MAX_SPLIT = 16
 #: Particles from which the automatic choices treat a body as large.
 _LARGE_BODY = 1 << 16
+#: Diagnostics slots: the lamp's two counters, then the area kernel's two.
+_N_DIAG = 4
 
 
 def _auto_split(n: int, device) -> int:
@@ -155,30 +186,50 @@ def _auto_order(n: int, device) -> bool:
     return device.is_cuda and n >= _LARGE_BODY
 
 
+def _check_int(name: str, value, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
 class ShiningLamp:
     """Shining-lamp pressure boundary for Warp particle simulators: arrays in, forces added in place.
 
-    ``update`` finds which particle each lamp cell lights and stores signed cell counts per particle. It starts
-    from the last update's owners, re-evaluated at the new positions, so that a slowly moving body costs little
-    more than reading its footprint; the result does not depend on that history (an atomic minimum).
-    ``add_forces`` adds P_a A_a count into a simulator's force array; ``apply`` does both. None of them
-    allocates (after the first update at a given particle count, or after :meth:`reserve`), synchronises or
-    reads device data on the host, so they can be recorded in a CUDA graph with ``wp.ScopedCapture``. Invalid
-    particles (non-finite, radius <= 0) are skipped and counted in :meth:`diagnostics`, never raised.
+    ``update`` finds which particle each lamp cell lights and stores signed counts per particle. It starts from
+    the last update's owners, re-evaluated at the new positions, so that a slowly moving body costs little more
+    than reading its footprint; the result does not depend on that history (an atomic minimum). ``add_forces``
+    adds the forces into a simulator's force array, in world coordinates; ``apply`` does both. None of them
+    allocates (after the first update at a given particle count, or after :meth:`reserve`), synchronises or reads
+    device data on the host, so they can be recorded in a CUDA graph with ``wp.ScopedCapture``. Invalid particles
+    (non-finite, radius <= 0) are skipped and counted in :meth:`diagnostics`, never raised.
 
-    With all six lamps on, the counts of each axis sum to exactly zero, so the forces balance exactly. With a
-    subset (``lamps``), the balance holds only on axes whose two lamps are both on.
+    With all six lamps on, the counts of each axis sum to exactly zero. The float32 forces ``add_forces`` writes
+    are each the correctly rounded value of the exact float64 force, so they balance to float32 rounding (about
+    3e-8 relative per force); the exact float64 forces, which sum to exactly zero, are
+    ``lamp.counts_numpy() @ lamp.force_factors(pressure).T`` (what :func:`lamp_forces` returns). With a subset of
+    lamps (``lamps``), the balance holds only on axes whose two lamps are both on.
+
+    The frame: positions are world coordinates; the lamp works in the grid's frame (``grid.rotation``, the frame
+    origin) and returns forces in world coordinates. The frame's pose lives in device arrays, :attr:`origin`
+    (one ``vec3``, world coordinates) and :attr:`rotation` (one ``mat33``), which a simulator may overwrite between
+    replays of a captured graph to move and turn the frame with its body; ``follow=True`` moves it by whole cells
+    itself.
     """
 
     def __init__(
         self,
         grid: LampGrid,
         *,
-        criterion: int = 1,
+        criterion: int | str = 1,
         lamps="all",
         device=None,
+        depth_slots: int = 3,
+        resolver: str = "subpoints",
+        subpoints: int = 8,
+        follow: bool = False,
         split: int | str = "auto",
         order: bool | str = "auto",
+        max_bytes: int = DEFAULT_MAX_BYTES,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -186,9 +237,23 @@ class ShiningLamp:
             grid: The lamp grids.
             criterion: 1, a cell is lit where its centre ray meets the sphere (depth where the ray enters for
                 the low lamp, leaves for the high lamp); 0, where the cell rectangle meets the projected disk
-                (depth of the sphere centre on both sides). The memo's ``sl_ic``.
+                (depth of the sphere centre on both sides): the memo's ``sl_ic``. ``"area"``: each cell's area is
+                split among the spheres visible in it (the first ``depth_slots`` spheres on each of its corner
+                rays, and the front sphere of the 8 corners around), exactly or on ``subpoints`` x ``subpoints``
+                points: far more accurate per cell than criterion 1 (``README.md``, "Accuracy that beats
+                refinement").
             lamps: "all", or names from :data:`LAMPS`.
             device: Warp device; the current default when None.
+            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 4 (3: dense random packings;
+                4: ordered packings).
+            resolver: Area criterion: ``"subpoints"`` (each of S x S points of a cell goes to the first sphere that
+                holds it; bitwise the same on CPU and GPU) or ``"exact"`` (circle arcs and cell edges; a last-bit
+                difference of the trigonometry between CPU and GPU may move one unit of 4096 per cell).
+            subpoints: Area criterion, sub-point resolver: points per cell edge, 1 to 16.
+            follow: Move the grid with the body: each update finds the particles' box on the device and shifts
+                the frame origin by whole cells so that the body sits centred in the grid, whose cell counts are a
+                fixed capacity. Particles that outgrow it are counted as ``outside``; the forces still balance.
+                Needs the box form of the grid (``LampGrid(lower, upper, cell)`` or ``enclosing``).
             split: How the depth pass shares out its work: 0, one thread per sphere for its three axes (the v4
                 pass of ``bench/NOTES.md``); s >= 1, s threads per (sphere, axis), taking its rows in turn;
                 ``"auto"`` chooses from the particle count when room is made for them (:meth:`reserve`), so that a
@@ -196,8 +261,10 @@ class ShiningLamp:
                 depend on it.
             order: With a split, sort the work of each axis by the cell under each particle (a device radix
                 sort), so that a warp's particles read the same rows: at the first update outside a capture, and
-                again whenever :meth:`reorder` is called. ``"auto"``: on a GPU. The result does not depend on it;
-                a body that moves far from where it was sorted only loses speed.
+                again whenever :meth:`reorder` is called. ``"auto"``: for large bodies on a GPU. The result does
+                not depend on it; a body that moves far from where it was sorted only loses speed.
+            max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
+                keys per corner and lamp); over it, ValueError before anything is allocated.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
@@ -205,24 +272,63 @@ class ShiningLamp:
             raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
             raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
+        if resolver not in AREA_RESOLVERS:
+            raise ValueError(f"resolver: expected one of {AREA_RESOLVERS}, got {resolver!r}")
+        if follow not in (True, False):
+            raise ValueError(f"follow: expected True or False, got {follow!r}")
         self.grid = grid
         self.criterion = _check_criterion(criterion)
         self.lamp_mask = lamp_mask(lamps)
-        self.device = wp.get_device(device)
+        self.device = d = wp.get_device(device)
+        area = self.criterion == "area"
+        self.depth_slots = _check_int("depth_slots", depth_slots, 1, lamp_kernels.MAX_SLOTS) if area else 1
+        self.subpoints = _check_int("subpoints", subpoints, 1, 16)
+        self.resolver = resolver
+        #: Counts per whole cell: 1 for cell counts, the area criterion's fixed-point units.
+        self.unit = 1
+        if area:
+            self.unit = AREA_EXACT_UNIT if resolver == "exact" else self.subpoints**2
+        # Where the depth pass's rays sit: cell centres or rectangles, or the area criterion's cell corners.
+        self._ray = int(RAY_CORNER) if area else self.criterion
+        samples = grid.n_samples if area else grid.n_cells
+        self.nbytes = 2 * self.depth_slots * samples * 8
+        check_budget(
+            self.nbytes,
+            max_bytes,
+            f"depth_slots: {self.depth_slots} keys per lamp on {samples:,} rays need {self.nbytes:,} bytes",
+            "raise max_bytes, lower depth_slots or use larger cells",
+        )
+        if follow and not grid.is_box:
+            raise ValueError("follow: needs the box form of the grid (LampGrid(lower, upper, cell) or enclosing)")
+        self.follow = bool(follow)
         self._split = split
         self.split = 0
         self._order = order
-        self.order = wp.empty(0, dtype=wp.int32, device=self.device)
+        self.order = wp.empty(0, dtype=wp.int32, device=d)
         self._no_order = self.order
-        self._order_keys = wp.empty(0, dtype=wp.int32, device=self.device)
-        self._order_ids = wp.empty(0, dtype=wp.int32, device=self.device)
+        self._order_keys = wp.empty(0, dtype=wp.int32, device=d)
+        self._order_ids = wp.empty(0, dtype=wp.int32, device=d)
         self._ordered_n = -1
-        self._params = {False: grid.params(), True: grid.params(in_frame=True)}
-        self._area = wp.vec3d(*grid.cell_area)
-        d = self.device
-        self.keys = wp.full(2 * grid.n_cells, value=_EMPTY, dtype=wp.uint64, device=d)
-        self.diag = wp.zeros(lamp_kernels.N_DIAG, dtype=wp.int32, device=d)
-        self.counts = wp.zeros(0, dtype=wp.int32, device=d)
+        #: The frame's pose on the device: origin (world coordinates, one vec3) and rotation (one mat33).
+        self.origin, self.rotation = grid.pose_arrays(d)
+        frame_pose = grid.pose_arrays(d, in_frame=True)
+        # Kernel views of the grid: its cells (scatter, area kernel) and its rays (seed, depth pass), for world
+        # positions and for positions already in frame coordinates.
+        self._cells = {False: grid.params(self.origin, self.rotation), True: grid.params(*frame_pose)}
+        self._rays = {
+            False: grid.params(self.origin, self.rotation, corners=area),
+            True: grid.params(*frame_pose, corners=area),
+        }
+        self._frame_rotation = frame_pose[1]
+        self._sample_offset = wp.vec3i(
+            *(int(x) for x in np.concatenate([[0], np.cumsum((grid.counts[:, 0] + 1) * (grid.counts[:, 1] + 1))[:2]]))
+        )
+        self.keys = wp.full(2 * self.depth_slots * samples, value=_EMPTY, dtype=wp.uint64, device=d)
+        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        self.counts = wp.zeros(0, dtype=wp.int64, device=d)
+        if self.follow:
+            self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=d)
+            self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
         self.n = 0
@@ -237,8 +343,10 @@ class ShiningLamp:
                     f"positions: {n} particles exceed the {self.counts.shape[0] // 3} reserved; call "
                     "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
                 )
-            self.counts = wp.zeros(3 * n, dtype=wp.int32, device=self.device)
+            self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
+            if self.depth_slots > 1:
+                self.split = max(self.split, 1)  # the D-slot depth pass is compiled for shared work only
             sort = _auto_order(n, self.device) if self._order == "auto" else self._order
             if sort and self.split > 0:
                 self.order = wp.empty(3 * n, dtype=wp.int32, device=self.device)
@@ -265,17 +373,18 @@ class ShiningLamp:
             raise ValueError(f"{name}: must be contiguous")
 
     def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None, *, in_frame=False) -> None:
-        """Recompute which particle each cell lights, and each particle's signed cell counts.
+        """Recompute which particle each cell lights, and each particle's signed counts.
 
-        Runs :meth:`launch_seed`, :meth:`launch_depth` and :meth:`launch_scatter` on these inputs.
+        Runs :meth:`launch_seed`, :meth:`launch_depth` and :meth:`launch_scatter` on these inputs (after the
+        grid's move, with ``follow``).
 
         Args:
             positions: Particle centres [m], warp array of vec3 (float32), shape (N,), on the lamp's device: world
-                coordinates, from which the lamp subtracts ``float32(grid.origin)``.
+                coordinates, which the lamp moves into its frame (:attr:`origin`, :attr:`rotation`).
             radii: Particle radii [m], warp array of float32, shape (N,).
             active: Optional warp array of int32, shape (N,): 0 makes a particle invisible (no shadow, no force).
-            in_frame: ``positions`` are already in frame coordinates (world minus ``grid.origin``, computed by the
-                caller, e.g. in float64 before the cast to float32), so the lamp subtracts nothing.
+            in_frame: ``positions`` are already in frame coordinates (``grid.to_frame``, computed by the caller,
+                e.g. in float64 before the cast to float32), so the lamp moves nothing (and does not follow).
         """
         self._check_array("positions", positions, wp.vec3)
         n = positions.shape[0]
@@ -291,7 +400,9 @@ class ShiningLamp:
         particles.radii = radii
         particles.active = active
         particles.n = n
-        self._inputs = (self._params[bool(in_frame)], particles)
+        self._inputs = (bool(in_frame), particles)
+        if self.follow and not in_frame:
+            self.launch_follow()
         if self.order.shape[0] and self._ordered_n != n and not self.device.is_capturing:
             self.reorder()
         self.launch_seed()
@@ -303,13 +414,13 @@ class ShiningLamp:
         (a device radix sort; not inside a capture). Only a lamp with a split and ``order`` on keeps an order."""
         if not self.order.shape[0] or self._inputs is None:
             return
-        grid, particles = self._inputs
+        in_frame, particles = self._inputs
         n = self.n
         for a in range(3):
             wp.launch(
                 lamp_kernels.lamp_order_keys,
                 dim=n,
-                inputs=[grid, particles, a],
+                inputs=[self._rays[in_frame], particles, a],
                 outputs=[self._order_keys, self._order_ids],
                 device=self.device,
             )
@@ -317,42 +428,99 @@ class ShiningLamp:
             wp.copy(self.order, self._order_ids, dest_offset=a * n, src_offset=0, count=n)
         self._ordered_n = n
 
-    # The three steps of an update, on the inputs of the last update: named so that benchmarks can time them.
+    # The steps of an update, on the inputs of the last update: named so that benchmarks can time them.
+
+    def launch_follow(self) -> None:
+        """Update step 0, with ``follow``: find the body's box and move the frame origin by whole cells."""
+        _, particles = self._inputs
+        g = self.grid
+        wp.launch(
+            lamp_kernels.lamp_follow_bounds,
+            dim=self.n,
+            inputs=[particles, wp.vec3(*g.world_origin.astype(np.float32)), self.rotation],
+            outputs=[self._bounds],
+            device=self.device,
+        )
+        box = g.box_counts
+        wp.launch(
+            lamp_kernels.lamp_follow_shift,
+            dim=1,
+            inputs=[wp.vec3d(*g.world_origin), wp.vec3d(*g.box_cell), wp.vec3i(*box), self.rotation],
+            outputs=[self._bounds, self.follow_shift, self.origin],
+            device=self.device,
+        )
 
     def launch_seed(self) -> None:
-        """Update step 1: clear the counts, and re-evaluate each cell's last owner at the current positions."""
-        grid, particles = self._inputs
-        d = self.device
+        """Update step 1: clear the counts, and re-evaluate each ray's last owners at the current positions."""
+        in_frame, particles = self._inputs
+        rays = self._rays[in_frame]
+        kernel, inputs = lamp_kernels.lamp_seed, [rays, particles, self._ray]
+        if self.depth_slots > 1:
+            kernel, inputs = lamp_kernels.lamp_seed_slots, [*inputs, self.depth_slots]
         wp.launch(
-            lamp_kernels.lamp_seed,
-            dim=max(self.grid.n_cells, self.n, lamp_kernels.N_DIAG),
-            inputs=[grid, particles, self.criterion],
+            kernel,
+            dim=max(rays.n_cells, self.n, _N_DIAG),
+            inputs=inputs,
             outputs=[self.keys, self.counts, self.diag],
-            device=d,
+            device=self.device,
         )
 
     def launch_depth(self) -> None:
-        """Update step 2: every sphere offers its depth to every cell it covers."""
-        grid, particles = self._inputs
+        """Update step 2: every sphere offers its depth to every ray it meets."""
+        in_frame, particles = self._inputs
         if self.n == 0:
             return
+        if self.depth_slots > 1:
+            kernel = lamp_kernels.lamp_depth_slots
+        else:
+            kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
         wp.launch(
-            lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere,
+            kernel,
             dim=self.n * (3 * self.split if self.split else 1),
-            inputs=[grid, particles, self.criterion, self.lamp_mask, self.split, 1, self._launch_order()],
+            inputs=[
+                self._rays[in_frame],
+                particles,
+                self._ray,
+                self.lamp_mask,
+                self.split,
+                self.depth_slots,
+                self._launch_order(),
+            ],
             outputs=[self.keys, self.diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
         )
 
     def launch_scatter(self) -> None:
-        """Update step 3: each lit cell adds its +1 / -1 to its owners' counts."""
+        """Update step 3: each lit cell adds its +1 / -1 to its owners' counts (the area criterion: each cell
+        shares its units among the spheres visible in it)."""
         if self.n == 0:
+            return
+        in_frame, particles = self._inputs
+        cells = self._cells[in_frame]
+        if self.criterion == "area":
+            wp.launch(
+                area_kernels.area_cells,
+                dim=self.grid.n_cells,
+                inputs=[
+                    cells,
+                    particles,
+                    self.keys,
+                    self.depth_slots,
+                    self._sample_offset,
+                    self.lamp_mask,
+                    area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
+                    self.subpoints,
+                    self.unit,
+                ],
+                outputs=[self.counts, self.diag[2:]],
+                device=self.device,
+            )
             return
         wp.launch(
             lamp_kernels.lamp_scatter,
             dim=self.grid.n_cells,
-            inputs=[self._inputs[0], self.keys],
+            inputs=[cells, self.keys],
             outputs=[self.counts],
             device=self.device,
         )
@@ -361,14 +529,30 @@ class ShiningLamp:
         # An order sorted for another particle count would skip particles: run unordered until the next reorder.
         return self.order if self._ordered_n == self.n else self._no_order
 
+    def force_factors(self, pressure) -> np.ndarray:
+        """F[j, a]: world force component j [N] per count on lamp axis a (``frames.lamp_force_factors``), for
+        the grid's rotation: the exact float64 forces are ``counts_numpy() @ F.T``.
+
+        Args:
+            pressure: A number, three numbers (per lamp axis) or a stress tensor diagonal in the lamp frame [Pa].
+        """
+        p, _ = lamp_pressure(pressure, self.grid.rotation)
+        return lamp_force_factors(p, self.grid.cell_area, self.grid.rotation, unit=self.unit)
+
     def add_forces(self, forces: wp.array, pressure) -> None:
-        """Add P_a A_a count[i, a] to ``forces[i]`` for the particles of the last update.
+        """Add each particle's forces of the last update to ``forces``, in world coordinates.
 
         Args:
             forces: Simulator force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
-            pressure: Fluid pressure [Pa]: a number, three numbers (Px, Py, Pz), or a warp float32 array of 1 or 3
-                values on the device (read when the kernel runs, so a captured graph sees its current value).
+            pressure: Fluid pressure [Pa]: a number, three numbers (per lamp axis), a stress tensor (3 x 3,
+                compression positive) diagonal in the lamp frame, or a warp float32 array of 1 or 3 values on the
+                device (read when the kernel runs, so a captured graph sees its current value).
+
+        Raises:
+            RuntimeError: before any update (there are no counts to turn into forces yet).
         """
+        if self._inputs is None:
+            raise RuntimeError("add_forces: call update (or apply) first; there are no counts yet")
         self._check_array("forces", forces, wp.vec3, self.n)
         const = wp.vec3d(0.0, 0.0, 0.0)
         arr = self._no_pressure
@@ -378,12 +562,21 @@ class ShiningLamp:
                 raise ValueError(f"pressure: a device array must hold 1 or 3 values, got {pressure.shape[0]}")
             arr = pressure
         else:
-            const = wp.vec3d(*check_pressure(pressure))
+            p, _ = lamp_pressure(pressure, self.grid.rotation)
+            lamp_force_factors(p, self.grid.cell_area, unit=self.unit)  # refuses P A outside the exact range
+            const = wp.vec3d(*p)
         if self.n > 0:
+            in_frame = self._inputs[0]
             wp.launch(
                 lamp_kernels.lamp_add_forces,
                 dim=self.n,
-                inputs=[self.counts, self._area, const, arr],
+                inputs=[
+                    self.counts,
+                    wp.vec3d(*(self.grid.cell_area / self.unit)),
+                    self._frame_rotation if in_frame else self.rotation,
+                    const,
+                    arr,
+                ],
                 outputs=[forces],
                 device=self.device,
             )
@@ -394,20 +587,33 @@ class ShiningLamp:
         self.add_forces(forces, pressure)
 
     def counts_numpy(self) -> np.ndarray:
-        """Signed lit-cell counts of the last update, shape (N, 3), int64 (copies to the host)."""
-        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3).astype(np.int64)
+        """Signed counts of the last update, shape (N, 3), int64 (copies to the host)."""
+        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+
+    def frame_origin(self) -> np.ndarray:
+        """The frame origin of the last update in frame coordinates [m], float64: ``grid.origin``, moved by whole
+        cells with ``follow`` (reads the device: a synchronisation). A grid ``LampGrid(frame_origin, ...,
+        rotation=grid.rotation)`` with the same cells and counts reproduces the last update bitwise."""
+        if not self.follow:
+            return self.grid.origin.copy()
+        k = self.follow_shift.numpy()[0].astype(np.float64)
+        return self.grid.origin + k * self.grid.box_cell
 
     def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> LampDiagnostics:
         """Surface flags, owner and depth maps, lit cells, skip counters, and resultants (host copies).
 
         Args:
-            positions: Particle centres [m], shape (N, 3) (numpy or warp), for the resultant moment.
-            pressure: Pressure [Pa] (a number or three), for the resultant force and moment.
+            positions: Particle centres in world coordinates [m], shape (N, 3) (numpy or warp), for the moment.
+            pressure: Pressure [Pa] (as :meth:`add_forces` takes it on the host), for the resultant force and moment.
             moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
         """
         diag = self.diag.numpy()
         counts = self.counts_numpy()
-        owners, depths = lamp_owner_maps(self.keys.numpy(), self.grid)
+        keys = self.keys.numpy()
+        corners = self.criterion == "area"
+        if corners:
+            keys = keys.reshape(-1, self.depth_slots)[:, 0]
+        owners, depths = lamp_owner_maps(keys, self.grid, corners=corners)
         surface = np.zeros(self.n, dtype=bool)
         lit = {}
         for name, own in owners.items():
@@ -416,15 +622,18 @@ class ShiningLamp:
             surface[own[hit]] = True
         out = LampDiagnostics(
             counts,
+            self.unit,
             surface,
             owners,
             depths,
             lit,
             int(diag[lamp_kernels.DIAG_INVALID]),
             int(diag[lamp_kernels.DIAG_OUTSIDE]),
+            int(diag[2]),
+            int(diag[3]),
         )
         if pressure is not None:
-            f = counts * pressure_area(pressure, self.grid)
+            f = counts @ self.force_factors(pressure).T
             out.force = f.sum(axis=0)
             if positions is not None:
                 x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
@@ -442,15 +651,17 @@ def lamp_update(
     *,
     grid: LampGrid | None = None,
     cells_per_diameter: float = 4,
-    criterion: int = 1,
+    criterion: int | str = 1,
     lamps="all",
     active=None,
     device=None,
+    **lamp_options,
 ) -> ShiningLamp:
     """One lamp update on host data; returns the lamp, for its counts and :meth:`ShiningLamp.diagnostics`.
 
-    The positions are taken relative to ``grid.origin`` in float64 before the cast to float32, so a body far from
-    the origin gets the same result as near it; pass ``centers`` to ``diagnostics`` for the moment.
+    The positions go into the grid's frame (``grid.to_frame``: the origin subtracted, then the rotation) in float64
+    before the cast to float32, so a body far from the origin gets the same result as near it; pass ``centers`` to
+    ``diagnostics`` for the moment.
 
     Args:
         centers: Particle centres [m], shape (N, 3).
@@ -458,10 +669,13 @@ def lamp_update(
         grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter`` (a placeholder
             one-cell grid when there are no particles).
         cells_per_diameter: Cells per mean particle diameter for the default grid.
-        criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk.
+        criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk; ``"area"``, each
+            cell's area split among the spheres visible in it (:class:`ShiningLamp`).
         lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
         active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
         device: Warp device; the current default when None.
+        **lamp_options: Further keywords of :class:`ShiningLamp` (``depth_slots``, ``resolver``, ``subpoints``,
+            ``split``, ``order``, ``max_bytes``).
     """
     c, r = check_particles(centers, radii)
     criterion = _check_criterion(criterion)
@@ -476,16 +690,15 @@ def lamp_update(
     if grid is None:
         if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
             raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
-        grid = (
-            LampGrid([0.0] * 3, [1.0] * 3, 1.0)
-            if n == 0
-            else LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter)
-        )
+        if n == 0:
+            grid = LampGrid([0.0] * 3, [1.0] * 3, 1.0)
+        else:
+            grid = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter)
     elif not isinstance(grid, LampGrid):
         raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
     device = wp.get_device(device)
-    lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device)
-    pos = wp.array((c - grid.origin).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
+    lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device, **lamp_options)
+    pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
     rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
     act = None if mask is None else wp.array(mask, dtype=wp.int32, device=device)
     lamp.update(pos, rad, act, in_frame=True)
@@ -493,23 +706,38 @@ def lamp_update(
 
 
 def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
-    """Shining-lamp forces on a body of spheres under fluid pressure.
+    """Shining-lamp forces on a body of spheres under fluid pressure, in world coordinates [N], float64.
 
     Each cell of the three lamp grids shines from both ends of its axis; the first sphere its ray meets takes
-    P_a A_cell along the ray, at its centre. Opposite lamps light the same cells, so with all six lamps on the
-    forces sum to exactly zero on every axis; with a subset of lamps only axes whose two lamps are on balance.
+    P_a A_cell along the ray, at its centre (or, with ``criterion="area"``, each visible sphere its share of the
+    cell). Opposite lamps light the same cells, so with all six lamps on the forces sum to exactly zero on every
+    axis, in any order of summation (also in a rotated frame: each world component is a sum of integer multiples of
+    one power of two); with a subset of lamps only axes whose two lamps are on balance.
 
     Args:
         centers: Particle centres [m], shape (N, 3), float64 welcome: the grid origin is subtracted in float64
             before the cast to float32, so a body far from the origin gets the same forces as near it.
         radii: Particle radii [m], shape (N,), or one number for all.
-        pressure: Fluid pressure [Pa], one number or (Px, Py, Pz) for polyaxial loading.
-        **options: The keyword arguments of :func:`lamp_update`: ``grid``, ``cells_per_diameter``,
-            ``criterion``, ``lamps``, ``active``, ``device``.
+        pressure: Fluid pressure [Pa]: one number, (P1, P2, P3) per lamp axis (polyaxial loading), or a
+            symmetric 3 x 3 stress tensor (compression positive), which the lamp applies in its principal frame
+            (without ``grid``: the enclosing grid is built in that frame; with ``grid``: the tensor must be
+            diagonal in the grid's frame).
+        **options: The keyword arguments of :func:`lamp_update` and :class:`ShiningLamp`: ``grid``,
+            ``cells_per_diameter``, ``criterion``, ``lamps``, ``active``, ``device``, ``depth_slots``, ``resolver``,
+            ``subpoints``, ``split``, ``order``, ``max_bytes``.
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
     """
-    p = check_pressure(pressure)
+    grid = options.get("grid")
+    p, frame = lamp_pressure(pressure, None if grid is None else getattr(grid, "rotation", None))
+    if frame is not None and options.get("grid") is None:
+        c, r = check_particles(centers, radii)
+        if len(r):
+            options["grid"] = LampGrid.enclosing(
+                c, r, cells_per_diameter=options.pop("cells_per_diameter", 4), rotation=frame
+            )
     lamp = lamp_update(centers, radii, **options)
-    return lamp.counts_numpy() * pressure_area(p, lamp.grid)
+    counts = lamp.counts_numpy()
+    factors = lamp_force_factors(p, lamp.grid.cell_area, lamp.grid.rotation, unit=lamp.unit)
+    return (counts[:, :1] * factors[:, 0] + counts[:, 1:2] * factors[:, 1]) + counts[:, 2:3] * factors[:, 2]

@@ -24,11 +24,11 @@ class BvhLamp:
         self.grid = grid
         self.device = wp.get_device(device)
         d = self.device
-        self._params = grid.params(in_frame=True)
+        self._params = grid.params(*grid.pose_arrays(self.device, in_frame=True))
         self.n = n
         self.n_cells = grid.n_cells
         self.keys = wp.zeros(2 * self.n_cells, dtype=wp.uint64, device=d)
-        self.counts = wp.zeros(3 * n, dtype=wp.int32, device=d)
+        self.counts = wp.zeros(3 * n, dtype=wp.int64, device=d)
         self.lowers = wp.zeros(n, dtype=wp.vec3, device=d)
         self.uppers = wp.zeros(n, dtype=wp.vec3, device=d)
         self.bvh = None

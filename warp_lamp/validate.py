@@ -13,6 +13,7 @@ __all__ = [
     "check_shape",
     "check_subdivisions",
     "check_vec3",
+    "lamp_rotation",
 ]
 
 #: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
@@ -113,3 +114,44 @@ def check_budget(need: int, max_bytes, what: str, remedy: str) -> None:
     """
     if need > max_bytes:
         raise ValueError(f"{what}, over the budget of {int(max_bytes):,} bytes ({remedy})")
+
+
+def lamp_rotation(rotation, *, name: str = "rotation") -> np.ndarray:
+    """A lamp frame's orientation as a float64 3 x 3 rotation matrix (columns: the lamp axes in world coordinates).
+
+    Accepts None (the identity), a 3 x 3 matrix, or a unit quaternion (x, y, z, w). Refuses, naming ``name``, what
+    is not finite, not orthonormal to 1e-6, or a reflection (det -1). The matrix is re-orthonormalised (polar
+    factor), so that R^T R = I to rounding.
+    """
+    if rotation is None:
+        return np.eye(3)
+    try:
+        r = np.asarray(rotation, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: expected a 3 x 3 rotation matrix or a unit quaternion ({e})") from None
+    if not np.isfinite(r).all():
+        k = int(np.flatnonzero(~np.isfinite(r).ravel())[0])
+        raise ValueError(f"{name}: must be finite; flat index {k} is {r.ravel()[k]!r}")
+    if r.shape == (4,):
+        norm = float(np.linalg.norm(r))
+        if abs(norm - 1.0) > 1e-6:
+            raise ValueError(f"{name}: a quaternion (x, y, z, w) must have unit norm, got {norm!r}")
+        x, y, z, w = r / norm
+        r = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+    if r.shape != (3, 3):
+        raise ValueError(f"{name}: expected a 3 x 3 rotation matrix or a unit quaternion, got shape {r.shape}")
+    err = float(np.abs(r.T @ r - np.eye(3)).max())
+    if err > 1e-6:
+        raise ValueError(f"{name}: not orthonormal (|R^T R - I| = {err:.2e}, above 1e-6)")
+    if np.linalg.det(r) < 0:
+        raise ValueError(f"{name}: a reflection (det = -1), not a rotation")
+    if np.array_equal(r, np.eye(3)):
+        return np.eye(3)
+    u, _, vt = np.linalg.svd(r)
+    return u @ vt

@@ -13,11 +13,19 @@ import warp as wp
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
 
+#: Where a cell's ray sits (the ``ray`` argument): a cell is lit where its rectangle meets the projected disk
+#: (the memo's criterion 0), or where its ray through the cell centre (criterion 1) or through its lower corner
+#: (the area criterion's sample rays, one per cell corner) meets the sphere.
+RAY_OVERLAP = wp.constant(0)
+RAY_CENTRE = wp.constant(1)
+RAY_CORNER = wp.constant(2)
+
+
 @wp.func
-def cell_span(lo: Any, hi: Any, h: Any, n: wp.int32, centre: wp.int32) -> wp.vec2i:
+def cell_span(lo: Any, hi: Any, h: Any, n: wp.int32, ray: wp.int32) -> wp.vec2i:
     """Indices [first, last] of the cells of width h that may meet [lo, hi], clamped to [0, n-1]; first > last if
-    none. ``centre=1``: cells whose centre (i + 1/2) h lies in [lo, hi]; ``centre=0``: cells [i h, (i+1) h] that
-    overlap it.
+    none. ``RAY_CENTRE``: cells whose centre (i + 1/2) h lies in [lo, hi]; ``RAY_CORNER``: cells whose corner i h
+    does; ``RAY_OVERLAP``: cells [i h, (i+1) h] that overlap it.
 
     A superset, never short: the span is padded by a tolerance above the float32 rounding of the divisions
     (2^-10 of a cell, plus 16 float32 ulps of the coordinates in cells), so that no cell the caller's exact test
@@ -30,9 +38,11 @@ def cell_span(lo: Any, hi: Any, h: Any, n: wp.int32, centre: wp.int32) -> wp.vec
     tol = type(lo)(0.0009765625) + (wp.abs(x) + wp.abs(y)) * type(lo)(9.5367431640625e-07)
     a = wp.ceil(x - one - tol)
     b = wp.floor(y + tol)
-    if centre != 0:
+    if ray == RAY_CENTRE:
         a = wp.ceil(x - type(lo)(0.5) - tol)
         b = wp.floor(y - type(lo)(0.5) + tol)
+    elif ray == RAY_CORNER:
+        a = wp.ceil(x - tol)
     nf = type(lo)(n)
     a = wp.clamp(a, type(lo)(0.0), nf)
     b = wp.clamp(b, -one, nf - one)
@@ -46,21 +56,23 @@ def rect_gap(x: Any, lo: Any, hi: Any) -> Any:
 
 
 @wp.func
-def cell_offset(i: wp.int32, h: Any, x: Any, centre: wp.int32) -> Any:
+def cell_offset(i: wp.int32, h: Any, x: Any, ray: wp.int32) -> Any:
     """Offset between cell i of width h and a sphere centre at x along one axis: from the cell centre
-    (``centre=1``), or the distance from x to the cell's interval (``centre=0``)."""
-    if centre != 0:
+    (``RAY_CENTRE``) or corner (``RAY_CORNER``), or the distance from x to the cell's interval (``RAY_OVERLAP``)."""
+    if ray == RAY_CENTRE:
         return (type(h)(i) + type(h)(0.5)) * h - x
+    if ray == RAY_CORNER:
+        return type(h)(i) * h - x
     return rect_gap(x, type(h)(i) * h, type(h)(i + 1) * h)
 
 
 @wp.func
-def lamp_reach(rem: wp.float32, du: wp.float32, criterion: wp.int32) -> wp.float32:
-    """Half-length of the sphere along a lit cell's ray (criterion 1), or 0 (criterion 0: depth at the centre).
+def lamp_reach(rem: wp.float32, du: wp.float32, ray: wp.int32) -> wp.float32:
+    """Half-length of the sphere along a lit cell's ray, or 0 for ``RAY_OVERLAP`` (depth at the centre).
 
     ``rem = r^2 - dv^2`` of the cell's row; the cell is lit when ``du^2 <= rem``. Every kernel that decides a
     cell (depth pass, seeding, BVH peer) goes through this and ``cell_offset``, so their float32 roundings agree.
     """
-    if criterion == 1:
+    if ray != RAY_OVERLAP:
         return wp.sqrt(rem - du * du)
     return 0.0

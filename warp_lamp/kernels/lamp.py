@@ -9,7 +9,7 @@ one identity (EMPTY_KEY) and one tie rule (lowest index wins) serve both sides. 
 import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
-from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
@@ -69,7 +69,7 @@ def frame_sphere(grid: LampGridParams, particles: LampParticles, particle: wp.in
         return out
     if inactive(particles, particle):
         return out
-    p = particles.positions[particle] - grid.origin
+    p = grid_to_frame(grid, particles.positions[particle])
     r = particles.radii[particle]
     # NaN fails every comparison, so `not (r > 0)` also catches a NaN radius.
     if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r) and r > 0.0):
@@ -222,7 +222,7 @@ def lamp_seed(
     criterion: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
-    counts: wp.array[wp.int32],
+    counts: wp.array[wp.int64],
     diag: wp.array[wp.int32],
 ):
     """One thread per cell replaces each lamp's key with its owner's key at the current positions (EMPTY where the
@@ -235,9 +235,9 @@ def lamp_seed(
     """
     c = wp.tid()
     if c < particles.n:
-        counts[3 * c] = 0
-        counts[3 * c + 1] = 0
-        counts[3 * c + 2] = 0
+        counts[3 * c] = wp.int64(0)
+        counts[3 * c + 1] = wp.int64(0)
+        counts[3 * c + 2] = wp.int64(0)
     if c < diag.shape[0]:
         diag[c] = 0
     if c >= grid.n_cells:
@@ -274,16 +274,16 @@ def lamp_seed_slots(
     depth_slots: wp.int32,
     # outputs
     keys: wp.array[wp.uint64],
-    counts: wp.array[wp.int32],
+    counts: wp.array[wp.int64],
     diag: wp.array[wp.int32],
 ):
     """``lamp_seed`` for samples that keep ``depth_slots`` > 1 keys per lamp: each kept key is re-evaluated, and the
-    slots re-sorted (the owners are distinct, so their keys are too)."""
+    slots re-sorted (distinct owners give distinct keys; a repeated owner is kept once)."""
     c = wp.tid()
     if c < particles.n:
-        counts[3 * c] = 0
-        counts[3 * c + 1] = 0
-        counts[3 * c + 2] = 0
+        counts[3 * c] = wp.int64(0)
+        counts[3 * c + 1] = wp.int64(0)
+        counts[3 * c + 2] = wp.int64(0)
     if c < diag.shape[0]:
         diag[c] = 0
     if c >= grid.n_cells:
@@ -294,6 +294,11 @@ def lamp_seed_slots(
         kept = SlotKeys()
         for slot in range(depth_slots):
             key = seed_key(grid, particles, cell, side, keys[base + slot], criterion)
+            # An owner kept twice (only in slots the lamp did not write, e.g. cleared to zero) would be kept twice
+            # again by the offers, which stop at an equal key: keep it once.
+            for k in range(slot):
+                if kept[k] == key:
+                    key = EMPTY_KEY
             k = slot
             while k > 0:
                 if kept[k - 1] <= key:
@@ -472,7 +477,7 @@ def lamp_scatter(
     grid: LampGridParams,
     keys: wp.array[wp.uint64],
     # outputs
-    counts: wp.array[wp.int32],
+    counts: wp.array[wp.int64],
 ):
     """Each lit cell adds +1 to its low owner's count on its axis and -1 to its high owner's: integers, so
     the sum over particles is exactly zero per axis pair and the result does not depend on thread order."""
@@ -481,37 +486,148 @@ def lamp_scatter(
     low = keys[2 * c]
     high = keys[2 * c + 1]
     if low != EMPTY_KEY:
-        wp.atomic_add(counts, 3 * key_owner(low) + a, 1)
+        wp.atomic_add(counts, 3 * key_owner(low) + a, wp.int64(1))
     if high != EMPTY_KEY:
-        wp.atomic_add(counts, 3 * key_owner(high) + a, -1)
+        wp.atomic_add(counts, 3 * key_owner(high) + a, wp.int64(-1))
 
 
 @wp.func
-def veltkamp_round26(x: wp.float64) -> wp.float64:
-    """x rounded to 26 significant bits (Veltkamp split), so that x times any count below 2**27 is exact."""
-    t = x * wp.float64(134217729.0)
-    return t - (t - x)
+def quantum26(x: wp.float64) -> wp.float64:
+    """The spacing 2^(e - 25) of the 26-significant-bit numbers around x (2^e <= |x| < 2^(e+1)); 0 for x = 0 or
+    a subnormal x, where no rounding is done."""
+    bits = wp.cast(wp.abs(x), wp.uint64)
+    e = wp.int64(bits >> wp.uint64(52))
+    if e <= wp.int64(25):
+        return wp.float64(0.0)
+    return wp.cast(wp.uint64(e - wp.int64(25)) << wp.uint64(52), wp.float64)
+
+
+@wp.func
+def round_to(x: wp.float64, q: wp.float64) -> wp.float64:
+    """x rounded to the nearest multiple of the power of two q (ties to even): (x + 1.5 2^52 q) - 1.5 2^52 q."""
+    if q == wp.float64(0.0):
+        return x
+    m = wp.float64(6755399441055744.0) * q
+    return (x + m) - m
+
+
+@wp.func
+def force_factors(p: wp.vec3d, area: wp.vec3d, rotation: wp.mat33) -> wp.mat33d:
+    """F[j, a]: the world force component j per unit count on axis a, P_a A_a R[j, a], each row rounded to the
+    26-bit spacing of its largest entry: every entry of a row is then a multiple of one power of two, so a sum of
+    count times F over particles is exact in float64 and the forces balance exactly in world coordinates. With
+    the identity this is P_a A_a rounded to 26 bits, as ``warp_lamp.lamp.pressure_area``; ``area`` is the cell
+    area over the units per cell and the number of frames averaged."""
+    f = wp.mat33d()
+    for j in range(3):
+        big = wp.float64(0.0)
+        for a in range(3):
+            x = (p[a] * area[a]) * wp.float64(rotation[j, a])
+            f[j, a] = x
+            big = wp.max(big, wp.abs(x))
+        q = quantum26(big)
+        for a in range(3):
+            f[j, a] = round_to(f[j, a], q)
+    return f
 
 
 @wp.kernel
 def lamp_add_forces(
-    counts: wp.array[wp.int32],
+    counts: wp.array[wp.int64],
     area: wp.vec3d,
+    rotation: wp.array[wp.mat33],
     pressure_const: wp.vec3d,
     pressure_arr: wp.array[wp.float32],
     # outputs
     forces: wp.array[wp.vec3],
 ):
-    """forces[i] += P_a A_a count[i, a]. P_a A_a is rounded to 26 bits so that the float64 product with any
-    count is exact: float32 forces are then the correctly rounded values of lamp_forces' float64 forces."""
+    """forces[i] += sum_a F[:, a] count[i, a] (``force_factors``), in world coordinates: the float32 forces are the
+    correctly rounded values of lamp_forces' float64 forces (with float32 R in place of float64 R)."""
     i = wp.tid()
     p = pressure_const
     if pressure_arr.shape[0] == 1:
         p = wp.vec3d(wp.float64(pressure_arr[0]))
     elif pressure_arr.shape[0] >= 3:
         p = wp.vec3d(wp.float64(pressure_arr[0]), wp.float64(pressure_arr[1]), wp.float64(pressure_arr[2]))
-    f = wp.vec3(0.0)
-    for a in range(3):
-        pa = veltkamp_round26(p[a] * area[a])
-        f[a] = wp.float32(pa * wp.float64(counts[3 * i + a]))
-    forces[i] = forces[i] + f
+    f = force_factors(p, area, rotation[0])
+    c0 = wp.float64(counts[3 * i])
+    c1 = wp.float64(counts[3 * i + 1])
+    c2 = wp.float64(counts[3 * i + 2])
+    out = wp.vec3(0.0)
+    for j in range(3):
+        out[j] = wp.float32((f[j, 0] * c0 + f[j, 1] * c1) + f[j, 2] * c2)
+    forces[i] = forces[i] + out
+
+
+@wp.kernel
+def lamp_follow_bounds(
+    particles: LampParticles,
+    base: wp.vec3,
+    rotation: wp.array[wp.mat33],
+    # outputs
+    bounds: wp.array[wp.float32],
+):
+    """The body's box in the base frame, R^T (x - base) -+ r, by atomic min and max over the particles that cast
+    light (the shift kernel leaves ``bounds`` reset for the next update)."""
+    i = wp.tid()
+    x = particles.positions[i]
+    r = particles.radii[i]
+    if inactive(particles, i):
+        return
+    if not (wp.isfinite(x[0]) and wp.isfinite(x[1]) and wp.isfinite(x[2]) and wp.isfinite(r) and r > 0.0):
+        return
+    q = x - base
+    m = rotation[0]
+    p = wp.vec3(
+        m[0, 0] * q[0] + m[1, 0] * q[1] + m[2, 0] * q[2],
+        m[0, 1] * q[0] + m[1, 1] * q[1] + m[2, 1] * q[2],
+        m[0, 2] * q[0] + m[1, 2] * q[1] + m[2, 2] * q[2],
+    )
+    for d in range(3):
+        wp.atomic_min(bounds, d, p[d] - r)
+        wp.atomic_max(bounds, 3 + d, p[d] + r)
+
+
+@wp.kernel
+def lamp_follow_shift(
+    base_world: wp.vec3d,
+    cell: wp.vec3d,
+    capacity: wp.vec3i,
+    rotation: wp.array[wp.mat33],
+    # outputs
+    bounds: wp.array[wp.float32],
+    shift: wp.array[wp.vec3i],
+    origin: wp.array[wp.vec3],
+):
+    """One thread moves the grid by whole cells so that the body's box sits centred in the capacity box: shift k
+    (cells per frame axis) and the frame origin base + R (k h) in world coordinates, in float64 before the cast.
+    Whole cells keep the result a pure function of the positions. Keeps the last shift when no particle counted
+    (an empty body), and resets the bounds for the next update."""
+    k = shift[0]
+    if bounds[0] <= bounds[3]:
+        for d in range(3):
+            centre = wp.float64(0.5) * (wp.float64(bounds[d]) + wp.float64(bounds[3 + d]))
+            k[d] = wp.int32(wp.floor(centre / cell[d] - wp.float64(0.5) * wp.float64(capacity[d]) + wp.float64(0.5)))
+    shift[0] = k
+    m = rotation[0]
+    step = wp.vec3d(wp.float64(k[0]) * cell[0], wp.float64(k[1]) * cell[1], wp.float64(k[2]) * cell[2])
+    o = wp.vec3(0.0)
+    for d in range(3):
+        w = (wp.float64(m[d, 0]) * step[0] + wp.float64(m[d, 1]) * step[1]) + wp.float64(m[d, 2]) * step[2]
+        o[d] = wp.float32(base_world[d] + w)
+    origin[0] = o
+    for d in range(3):
+        bounds[d] = 3.0e38
+        bounds[3 + d] = -3.0e38
+
+
+@wp.kernel
+def lamp_to_frame(
+    grid: LampGridParams,
+    particles: LampParticles,
+    # outputs
+    frame: wp.array[wp.vec3],
+):
+    """Particles' frame coordinates, for the modes that work on them directly (the wetted surface)."""
+    i = wp.tid()
+    frame[i] = grid_to_frame(grid, particles.positions[i])

@@ -3,7 +3,7 @@
 import warp as wp
 
 from warp_lamp.kernels.footprint import lamp_reach
-from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
 from warp_lamp.kernels.keys import EMPTY_KEY, pack_key
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
@@ -65,7 +65,7 @@ def bvh_cast(
     q = wp.bvh_query_ray(bvh, start, d)
     k = int(0)
     while wp.bvh_query_next(q, k, max_dist):
-        p = positions[k] - grid.origin
+        p = grid_to_frame(grid, positions[k])
         r = radii[k]
         du = u - (p[(a + 1) % 3] - grid.corner_u[a])
         dv = v - (p[(a + 2) % 3] - grid.corner_v[a])

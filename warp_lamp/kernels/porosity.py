@@ -3,7 +3,7 @@ sub-cells on a bitmap (voxel, midpoint). Coordinates are relative to the box's l
 
 import warp as wp
 
-from warp_lamp.kernels.footprint import cell_offset, cell_span
+from warp_lamp.kernels.footprint import RAY_CENTRE, RAY_OVERLAP, cell_offset, cell_span
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -151,9 +151,9 @@ def porosity_box(
     s = wp.tid()
     c = centers[s]
     r = radii[s]
-    xs = cell_span(c[0] - r, c[0] + r, h[0], shape[0], 0)
-    ys = cell_span(c[1] - r, c[1] + r, h[1], shape[1], 0)
-    zs = cell_span(c[2] - r, c[2] + r, h[2], shape[2], 0)
+    xs = cell_span(c[0] - r, c[0] + r, h[0], shape[0], RAY_OVERLAP)
+    ys = cell_span(c[1] - r, c[1] + r, h[1], shape[1], RAY_OVERLAP)
+    zs = cell_span(c[2] - r, c[2] + r, h[2], shape[2], RAY_OVERLAP)
     zero = wp.float64(0.0)
     for i in range(xs[0], xs[1] + 1):
         for j in range(ys[0], ys[1] + 1):
@@ -230,32 +230,32 @@ def voxel_mark(
     c = centers[s]
     r = radii[s]
     r2 = r * r
-    js = cell_span(c[1] - r, c[1] + r, hs[1], sub[1], 1)
+    js = cell_span(c[1] - r, c[1] + r, hs[1], sub[1], RAY_CENTRE)
     for j in range(js[0], js[1] + 1):
-        dy = cell_offset(j, hs[1], c[1], 1)
+        dy = cell_offset(j, hs[1], c[1], RAY_CENTRE)
         ry2 = r2 - dy * dy
         if ry2 < wp.float64(0.0):
             continue
         ry = wp.sqrt(ry2)
-        ks = cell_span(c[2] - ry, c[2] + ry, hs[2], sub[2], 1)
+        ks = cell_span(c[2] - ry, c[2] + ry, hs[2], sub[2], RAY_CENTRE)
         for k in range(ks[0], ks[1] + 1):
-            dz = cell_offset(k, hs[2], c[2], 1)
+            dz = cell_offset(k, hs[2], c[2], RAY_CENTRE)
             rem = ry2 - dz * dz
             if rem < wp.float64(0.0):
                 continue
             w = wp.sqrt(rem)
             # The span of centres is a superset (footprint.cell_span): trim it to the exact test, which is
             # monotone in |dx| along the row, so the run is exactly the sub-cells that pass.
-            span = cell_span(c[0] - w, c[0] + w, hs[0], sub[0], 1)
+            span = cell_span(c[0] - w, c[0] + w, hs[0], sub[0], RAY_CENTRE)
             i0 = span[0]
             i1 = span[1]
             while i0 <= i1:
-                dx = cell_offset(i0, hs[0], c[0], 1)
+                dx = cell_offset(i0, hs[0], c[0], RAY_CENTRE)
                 if dx * dx <= rem:
                     break
                 i0 += 1
             while i1 >= i0:
-                dx = cell_offset(i1, hs[0], c[0], 1)
+                dx = cell_offset(i1, hs[0], c[0], RAY_CENTRE)
                 if dx * dx <= rem:
                     break
                 i1 -= 1

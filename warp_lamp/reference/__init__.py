@@ -5,6 +5,14 @@ boundary, the lamp reference flags the cell as ambiguous, with a bound derived f
 tests compare every other cell exactly.
 """
 
+from warp_lamp.reference.area import (
+    EXACT_UNIT,
+    AreaEstimate,
+    area_depth_slots,
+    area_estimate_reference,
+    visible_area_reference,
+    visible_disk_areas,
+)
 from warp_lamp.reference.lamp import EPS32, LampReference, lamp_reference
 from warp_lamp.reference.porosity import (
     PAPER_TABLE_1,
@@ -17,12 +25,18 @@ from warp_lamp.reference.porosity import (
 
 __all__ = [
     "EPS32",
+    "EXACT_UNIT",
     "PAPER_TABLE_1",
+    "AreaEstimate",
     "LampReference",
+    "area_depth_slots",
+    "area_estimate_reference",
     "lamp_reference",
     "midpoint_sphere_offsets",
     "midpoint_spheres",
     "octant_volume",
     "porosity_reference",
     "sphere_box_volume",
+    "visible_area_reference",
+    "visible_disk_areas",
 ]

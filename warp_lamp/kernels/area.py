@@ -1,0 +1,503 @@
+"""Per-cell kernel of the lamp's visible-area criterion (issue 15): gather, resolve, balance and scatter.
+
+One thread per cell of the three grids handles both lamps of its cell. It reads the D-slot keys the depth pass
+left at the cell's sample rays (the cell corners) and does, in this order, exactly what
+``warp_lamp.reference_area.area_estimate_reference`` documents:
+
+1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
+   when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``;
+2. resolve each seed's share of the cell, exactly (circle arcs and cell edges, float32) or on S x S sub-points;
+3. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
+   share;
+4. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
+
+Key layout (the depth pass's output): grid a has (n_u + 1) x (n_v + 1) samples, row-major (j (n_u + 1) + i) from
+``sample_offset[a]``; sample s holds ``2 D`` keys at ``keys[(2 s + side) D + k]``, k = 0 .. D-1 ascending,
+side 0 the low lamp, 1 the high lamp, EMPTY_KEY where fewer than k + 1 spheres meet the ray.
+
+Counts are int64: a particle's units on one axis reach ``cells x unit`` (4096 per whole cell for the exact
+resolver), which passes 2^31 for a sphere of about 410 cells radius, a size the grid budget allows.
+
+Everything is fixed-size local storage; nothing allocates. A cell with more than MAX_SEEDS seeds keeps the front
+ones and counts itself in ``diag[DIAG_OVERFLOW]``; a cell one lamp cannot pay out counts in ``diag[DIAG_ONE_SIDED]``.
+"""
+
+import warp as wp
+
+from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
+from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
+from warp_lamp.kernels.lamp import LampParticles
+
+# fuse_fp off: the sub-point tests and the gather must round alike on CPU and CUDA (bitwise equal units).
+wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+
+#: Most seeds per cell and lamp; the gather keeps the frontmost ones.
+MAX_SEEDS = wp.constant(16)
+#: Angular intervals per circle: the other seeds, plus 4 cell edges, rounded up.
+MAX_IVL = wp.constant(20)
+
+RESOLVER_EXACT = wp.constant(0)
+RESOLVER_SUBPOINTS = wp.constant(1)
+DIAG_OVERFLOW = wp.constant(0)
+DIAG_ONE_SIDED = wp.constant(1)
+
+PI = wp.constant(3.14159265358979)
+TWO_PI = wp.constant(6.28318530717959)
+
+vec_seed_i = wp.types.vector(length=16, dtype=wp.int32)
+vec_seed_f = wp.types.vector(length=16, dtype=wp.float32)
+vec_seed_k = wp.types.vector(length=16, dtype=wp.uint64)
+vec_ivl_f = wp.types.vector(length=20, dtype=wp.float32)
+vec_ivl_i = wp.types.vector(length=20, dtype=wp.int32)
+vec_cut = wp.types.vector(length=40, dtype=wp.float32)
+
+
+@wp.func
+def sort_cuts(cuts: vec_cut, n: wp.int32) -> vec_cut:
+    """Insertion sort of cuts[0 .. n-1], ascending (n <= 40: fewer compares than anything cleverer)."""
+    for m in range(1, n):
+        x = cuts[m]
+        pos = m
+        while pos > 0:
+            if cuts[pos - 1] > x:
+                cuts[pos] = cuts[pos - 1]
+                pos -= 1
+            else:
+                break
+        cuts[pos] = x
+    return cuts
+
+
+@wp.func
+def in_interval(t: wp.float32, phi: wp.float32, alpha: wp.float32) -> wp.int32:
+    """Whether angle t lies within alpha of phi (alpha >= pi: always; alpha <= 0: never)."""
+    if alpha >= PI:
+        return 1
+    if alpha <= 0.0:
+        return 0
+    off = t - phi
+    off = off - TWO_PI * wp.floor((off + PI) / TWO_PI)
+    if wp.abs(off) <= alpha:
+        return 1
+    return 0
+
+
+@wp.func
+def arc_integral(x: wp.float32, y: wp.float32, r: wp.float32, t1: wp.float32, t2: wp.float32) -> wp.float32:
+    """1/2 of the integral of (x dy - y dx) along the circle (x, y, r) from angle t1 to t2 (counter-clockwise)."""
+    return 0.5 * (r * r * (t2 - t1) + x * r * (wp.sin(t2) - wp.sin(t1)) - y * r * (wp.cos(t2) - wp.cos(t1)))
+
+
+@wp.func
+def exact_areas(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32, hu: wp.float32, hv: wp.float32):
+    """Visible area of each seed (front to back) inside the cell [0, hu] x [0, hv], exact up to float32.
+
+    Green's theorem about the cell centre; every boundary point is attributed, never clipped (see
+    ``warp_lamp.reference_area``): a point of circle j inside the cell and not covered by an earlier seed is on
+    the boundary of j's visible region, and reversed on that of the first later seed that covers it; a point of
+    a cell edge belongs to the first seed that covers it. Coverage of circle j by disk i is an angular interval
+    whose half-width acos((d^2 + (r_j - r_i)(r_j + r_i)) / (2 d r_j)) is clamped, so tangency (external or
+    internal) and near-tangency move no decision abruptly; identical circles go to the earlier seed by rule.
+    """
+    hw = 0.5 * hu
+    hh = 0.5 * hv
+    area = vec_seed_f()
+    for j in range(count):
+        xj = ox[j] - hw
+        yj = oy[j] - hh
+        rj = rr[j]
+        phi = vec_ivl_f()
+        alpha = vec_ivl_f()
+        owner = vec_ivl_i()
+        n = int(0)
+        for i in range(count):
+            if i != j:
+                dx = ox[i] - ox[j]
+                dy = oy[i] - oy[j]
+                if dx == 0.0 and dy == 0.0:
+                    if rr[i] > rj or (rr[i] == rj and i < j):
+                        phi[n] = 0.0
+                        alpha[n] = PI
+                        owner[n] = i
+                        n += 1
+                else:
+                    d = wp.sqrt(dx * dx + dy * dy)
+                    ca = (d * d + (rj - rr[i]) * (rj + rr[i])) / (2.0 * d * rj)
+                    if ca < 1.0:
+                        phi[n] = wp.atan2(dy, dx)
+                        alpha[n] = wp.acos(wp.max(ca, -1.0))
+                        owner[n] = i
+                        n += 1
+        # Outside the cell: left of x = 0 is |t - pi| < acos(ox / r), and so on; owner -1.
+        gone = int(0)
+        for e in range(4):
+            v = float(0.0)
+            c = float(0.0)
+            if e == 0:
+                v = ox[j]
+                c = PI
+            elif e == 1:
+                v = hu - ox[j]
+                c = 0.0
+            elif e == 2:
+                v = oy[j]
+                c = -0.5 * PI
+            else:
+                v = hv - oy[j]
+                c = 0.5 * PI
+            q = v / rj
+            if q <= -1.0:
+                gone = 1
+            if q < 1.0:
+                phi[n] = c
+                alpha[n] = wp.acos(wp.max(q, -1.0))
+                owner[n] = -1
+                n += 1
+        if gone != 0:
+            continue
+        cuts = vec_cut()
+        cuts[0] = 0.0
+        m = int(1)
+        for k in range(n):
+            if alpha[k] > 0.0 and alpha[k] < PI:
+                t_lo = phi[k] - alpha[k]
+                t_hi = phi[k] + alpha[k]
+                if t_lo < 0.0:
+                    t_lo += TWO_PI
+                if t_hi < 0.0:
+                    t_hi += TWO_PI
+                if t_lo >= TWO_PI:
+                    t_lo -= TWO_PI
+                if t_hi >= TWO_PI:
+                    t_hi -= TWO_PI
+                cuts[m] = t_lo
+                cuts[m + 1] = t_hi
+                m += 2
+        cuts[m] = TWO_PI
+        m += 1
+        cuts = sort_cuts(cuts, m)
+        for k in range(m - 1):
+            t1 = cuts[k]
+            t2 = cuts[k + 1]
+            if t2 > t1:
+                mid = 0.5 * (t1 + t2)
+                outside = int(0)
+                first = count
+                for b in range(n):
+                    if in_interval(mid, phi[b], alpha[b]) != 0:
+                        if owner[b] < 0:
+                            outside = 1
+                        elif owner[b] < first:
+                            first = owner[b]
+                if outside == 0 and first > j:
+                    piece = arc_integral(xj, yj, rj, t1, t2)
+                    area[j] = area[j] + piece
+                    if first < count:
+                        area[first] = area[first] - piece
+    # Cell edges, counter-clockwise: each piece adds 1/2 (its line's distance from the centre) x length.
+    for e in range(4):
+        half = float(0.0)
+        weight = float(0.0)
+        lo = vec_seed_f()
+        hi = vec_seed_f()
+        cuts = vec_cut()
+        if e < 2:
+            half = hh
+            weight = hw
+        else:
+            half = hw
+            weight = hh
+        cuts[0] = -half
+        m = int(1)
+        for i in range(count):
+            dp = float(0.0)
+            par = float(0.0)
+            if e == 0:
+                dp = ox[i]
+                par = oy[i] - hh
+            elif e == 1:
+                dp = ox[i] - hu
+                par = oy[i] - hh
+            elif e == 2:
+                dp = oy[i]
+                par = ox[i] - hw
+            else:
+                dp = oy[i] - hv
+                par = ox[i] - hw
+            s2 = rr[i] * rr[i] - dp * dp
+            if s2 > 0.0:
+                w = wp.sqrt(s2)
+                lo[i] = par - w
+                hi[i] = par + w
+                cuts[m] = wp.clamp(par - w, -half, half)
+                cuts[m + 1] = wp.clamp(par + w, -half, half)
+                m += 2
+            else:
+                lo[i] = 1.0
+                hi[i] = -1.0
+        cuts[m] = half
+        m += 1
+        cuts = sort_cuts(cuts, m)
+        for k in range(m - 1):
+            t1 = cuts[k]
+            t2 = cuts[k + 1]
+            if t2 > t1:
+                mid = 0.5 * (t1 + t2)
+                first = int(-1)
+                for i in range(count):
+                    if first < 0 and mid >= lo[i] and mid <= hi[i]:
+                        first = i
+                if first >= 0:
+                    area[first] = area[first] + 0.5 * weight * (t2 - t1)
+    return area
+
+
+@wp.func
+def holds_corners(ox: wp.float32, oy: wp.float32, r: wp.float32, hu: wp.float32, hv: wp.float32) -> wp.int32:
+    """Whether the disk holds all four corners of the cell [0, hu] x [0, hv] (float32, as the reference)."""
+    r2 = r * r
+    ax = 0.0 - ox
+    bx = hu - ox
+    ay = 0.0 - oy
+    by = hv - oy
+    if ax * ax + ay * ay <= r2 and bx * bx + ay * ay <= r2 and ax * ax + by * by <= r2 and bx * bx + by * by <= r2:
+        return 1
+    return 0
+
+
+@wp.func
+def subpoint_shares(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32, hu: float, hv: float, s: int):
+    """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the first seed
+    whose closed disk holds it (float32, each product and sum rounded: the reference repeats it bitwise); a
+    last seed holding all four corners holds every point. ``count`` >= 1."""
+    shares = vec_seed_f()
+    # After the cull, a last seed that holds all four corners takes every point the others leave, untested.
+    tested = count
+    if holds_corners(ox[count - 1], oy[count - 1], rr[count - 1], hu, hv) != 0:
+        tested = count - 1
+        if tested == 0:
+            shares[0] = float(s * s)
+            return shares
+    su = hu / float(s)
+    sv = hv / float(s)
+    for k in range(s):
+        tx = (float(k) + 0.5) * su
+        for kv in range(s):
+            ty = (float(kv) + 0.5) * sv
+            won = tested
+            for m in range(tested):
+                dx = tx - ox[m]
+                dy = ty - oy[m]
+                if dx * dx + dy * dy <= rr[m] * rr[m]:
+                    won = m
+                    break
+            if won < count:
+                shares[won] = shares[won] + 1.0
+    return shares
+
+
+@wp.kernel
+def area_cells(
+    grid: LampGridParams,
+    particles: LampParticles,
+    keys: wp.array[wp.uint64],
+    depth_slots: wp.int32,
+    sample_offset: wp.vec3i,
+    lamp_mask: wp.int32,
+    resolver: wp.int32,
+    subpoints: wp.int32,
+    unit: wp.int32,
+    # outputs
+    counts: wp.array[wp.int64],
+    diag: wp.array[wp.int32],
+):
+    """One thread per cell: gather, resolve, balance and scatter both lamps of the cell (module docstring)."""
+    c = wp.tid()
+    cell = grid_cell(grid, c)
+    a = cell[0]
+    i = cell[1]
+    j = cell[2]
+    bits = (lamp_mask >> (2 * a)) & 3
+    if bits == 0:
+        return
+    nu = grid.n_u[a]
+    nv = grid.n_v[a]
+    hu = grid.h_u[a]
+    hv = grid.h_v[a]
+    x0 = float(i) * hu
+    y0 = float(j) * hv
+    d = depth_slots
+    ids0 = vec_seed_i()
+    ids1 = vec_seed_i()
+    share0 = vec_seed_f()
+    share1 = vec_seed_f()
+    count0 = int(0)
+    count1 = int(0)
+    total0 = int(0)
+    total1 = int(0)
+    overflow = int(0)
+    for side in range(2):
+        if ((bits >> side) & 1) == 0:
+            continue
+        ids = vec_seed_i()
+        okeys = vec_seed_k()
+        ox = vec_seed_f()
+        oy = vec_seed_f()
+        rr = vec_seed_f()
+        count = int(0)
+        for m in range(4 * d + 8):
+            # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0.
+            di = int(0)
+            dj = int(0)
+            slot = int(0)
+            if m < 4 * d:
+                corner = m / d
+                slot = m - corner * d
+                di = corner % 2
+                dj = corner / 2
+            else:
+                ring = m - 4 * d
+                if ring < 4:
+                    di = wp.where(ring < 2, -1, 2)
+                    dj = ring % 2
+                else:
+                    di = ring % 2
+                    dj = wp.where(ring < 6, -1, 2)
+            si = i + di
+            sj = j + dj
+            if si < 0 or si > nu or sj < 0 or sj > nv:
+                continue
+            key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + side) * d + slot]
+            if key == EMPTY_KEY:
+                continue
+            pid = key_owner(key)
+            dup = int(0)
+            for k in range(count):
+                if ids[k] == pid:
+                    dup = 1
+            if dup != 0:
+                continue
+            p = grid_to_frame(grid, particles.positions[pid])
+            r = particles.radii[pid]
+            cx = (p[(a + 1) % 3] - grid.corner_u[a]) - x0
+            cy = (p[(a + 2) % 3] - grid.corner_v[a]) - y0
+            gx = wp.max(wp.max(-cx, cx - hu), 0.0)
+            gy = wp.max(wp.max(-cy, cy - hv), 0.0)
+            if not (gx * gx + gy * gy < r * r):
+                continue
+            depth = p[a]
+            if side == 1:
+                depth = -p[a]
+            okey = pack_key(depth, pid)
+            if count == MAX_SEEDS:
+                overflow = 1
+                if okey >= okeys[MAX_SEEDS - 1]:
+                    continue
+                count = MAX_SEEDS - 1
+            pos = count
+            while pos > 0:
+                if okeys[pos - 1] > okey:
+                    okeys[pos] = okeys[pos - 1]
+                    ids[pos] = ids[pos - 1]
+                    ox[pos] = ox[pos - 1]
+                    oy[pos] = oy[pos - 1]
+                    rr[pos] = rr[pos - 1]
+                    pos -= 1
+                else:
+                    break
+            okeys[pos] = okey
+            ids[pos] = pid
+            ox[pos] = cx
+            oy[pos] = cy
+            rr[pos] = r
+            count += 1
+        # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
+        # larger, or behind the first seed whose disk holds all four corners (it holds the whole cell).
+        kept = int(0)
+        for k in range(count):
+            drop = int(0)
+            for k2 in range(kept):
+                if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
+                    drop = 1
+            if drop == 0:
+                ids[kept] = ids[k]
+                ox[kept] = ox[k]
+                oy[kept] = oy[k]
+                rr[kept] = rr[k]
+                kept += 1
+                if holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
+                    break
+        count = kept
+        shares = vec_seed_f()
+        if count > 0:
+            if resolver == RESOLVER_SUBPOINTS:
+                shares = subpoint_shares(ox, oy, rr, count, hu, hv, subpoints)
+            else:
+                areas = exact_areas(ox, oy, rr, count, hu, hv)
+                for k in range(count):
+                    shares[k] = areas[k] / (hu * hv) * float(unit)
+        total = float(0.0)
+        for k in range(count):
+            total += shares[k]
+        if side == 0:
+            ids0 = ids
+            share0 = shares
+            count0 = count
+            total0 = int(wp.floor(total + 0.5))
+        else:
+            ids1 = ids
+            share1 = shares
+            count1 = count
+            total1 = int(wp.floor(total + 0.5))
+    if overflow != 0:
+        wp.atomic_add(diag, DIAG_OVERFLOW, 1)
+    big = wp.max(total0, total1)
+    if big <= 0:
+        return
+    # A lamp that is on but holds no positive share cannot pay out: the cell gives nothing on either side.
+    for side in range(2):
+        if ((bits >> side) & 1) != 0:
+            sh = share0
+            n = count0
+            if side == 1:
+                sh = share1
+                n = count1
+            s = float(0.0)
+            for k in range(n):
+                s += sh[k]
+            if not (s > 0.0):
+                big = 0
+    if big == 0:
+        wp.atomic_add(diag, DIAG_ONE_SIDED, 1)
+        return
+    for side in range(2):
+        if ((bits >> side) & 1) == 0:
+            continue
+        sh = share0
+        ids = ids0
+        n = count0
+        sign = wp.int64(1)
+        if side == 1:
+            sh = share1
+            ids = ids1
+            n = count1
+            sign = wp.int64(-1)
+        s = float(0.0)
+        for k in range(n):
+            s += sh[k]
+        units = vec_seed_i()
+        given = int(0)
+        best = int(0)
+        for k in range(n):
+            if resolver == RESOLVER_SUBPOINTS:
+                # Integer floor division: exact, as the reference's float64 floor of the same quotient.
+                units[k] = (big * int(sh[k])) / int(s)
+            else:
+                units[k] = int(wp.floor(float(big) * sh[k] / s))
+            given += units[k]
+            if sh[k] > sh[best]:
+                best = k
+        units[best] = units[best] + (big - given)
+        for k in range(n):
+            if units[k] != 0:
+                wp.atomic_add(counts, 3 * ids[k] + a, sign * wp.int64(units[k]))
