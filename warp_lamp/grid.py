@@ -280,6 +280,24 @@ class LampGrid:
         (cu, cv), (hu, hv), (nu, nv) = self.corner[axis], self.cell[axis], self.counts[axis]
         return cu + (np.arange(nu) + 0.5) * hu, cv + (np.arange(nv) + 0.5) * hv
 
+    def rotated(self, rotation) -> LampGrid:
+        """The grid turned by ``rotation`` (relative to its own frame): the smallest box in the frame
+        ``self.rotation @ rotation`` that holds this grid's box, with the same (cubic) cells; this grid itself for
+        the identity. Frame averaging builds its frames so."""
+        r = lamp_rotation(rotation)
+        if np.array_equal(r, np.eye(3)):
+            return self
+        h = self.box_cell
+        if not self.is_box or np.ptp(h) > 0:
+            raise ValueError("frames: turning a grid needs the box form with cubic cells")
+        hi = self.origin + self.box_counts * h
+        corners = np.array([[(self.origin, hi)[(k >> d) & 1][d] for d in range(3)] for k in range(8)])
+        world = corners @ self.rotation.T
+        frame = self.rotation @ r
+        local = world @ frame
+        lo, up = local.min(axis=0), local.max(axis=0)
+        return LampGrid(lo, up, float(h[0]), rotation=frame, max_bytes=np.inf)
+
     def to_frame(self, centers) -> np.ndarray:
         """Local frame coordinates of world points [m], ``R^T (x - R origin)`` in float64 (the subtraction first,
         so that precision follows the body), shape (N, 3): what :func:`~warp_lamp.lamp_forces` casts to float32."""

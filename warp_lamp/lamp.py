@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_lamp.frames import lamp_force_factors, lamp_pressure
+from warp_lamp.frames import lamp_force_factors, lamp_frame_rotations, lamp_pressure
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
@@ -229,6 +229,7 @@ class ShiningLamp:
         follow: bool = False,
         split: int | str = "auto",
         order: bool | str = "auto",
+        frames: int = 1,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
@@ -263,11 +264,53 @@ class ShiningLamp:
                 sort), so that a warp's particles read the same rows: at the first update outside a capture, and
                 again whenever :meth:`reorder` is called. ``"auto"``: for large bodies on a GPU. The result does
                 not depend on it; a body that moves far from where it was sorted only loses speed.
+            frames: Frame averaging: run the lamp in this many fixed orientations (``frames.lamp_frame_rotations``:
+                the grid's own first, then a low-discrepancy set turned by it) and average the forces. Each frame's
+                grid is the smallest box in that frame around ``grid``'s box, with its cells (cubic cells needed).
+                ``update`` runs every frame's pass (all recorded in a capture); :attr:`frames` lists the per-frame
+                lamps for their diagnostics.
             max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
-                keys per corner and lamp); over it, ValueError before anything is allocated.
+                keys per corner and lamp; frame averaging keeps one set per frame); over it, ValueError before
+                anything is allocated.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+        self._weight = 1.0
+        self.frames = []
+        frames = _check_int("frames", frames, 1, 1 << 10)
+        if frames > 1:
+            if follow:
+                raise ValueError("frames: frame averaging with follow=True is not supported; follow one frame")
+            grids = [grid.rotated(r) for r in lamp_frame_rotations(frames)]
+            need = (
+                sum(g.n_samples if criterion == "area" else g.n_cells for g in grids)
+                * 16
+                * (depth_slots if criterion == "area" else 1)
+            )
+            check_budget(need, max_bytes, f"frames: {frames} frames need {need:,} bytes", "raise max_bytes")
+            options = dict(
+                criterion=criterion,
+                lamps=lamps,
+                device=device,
+                depth_slots=depth_slots,
+                resolver=resolver,
+                subpoints=subpoints,
+                split=split,
+                order=order,
+                max_bytes=max_bytes,
+            )
+            self.frames = [ShiningLamp(g, **options) for g in grids]
+            for child in self.frames:
+                child._weight = 1.0 / frames
+            self.grid = grid
+            self.criterion = self.frames[0].criterion
+            self.lamp_mask = self.frames[0].lamp_mask
+            self.device = self.frames[0].device
+            self.unit = self.frames[0].unit
+            self.follow = False
+            self.n = 0
+            self._inputs = None
+            return
         if order not in ("auto", True, False):
             raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
@@ -337,6 +380,10 @@ class ShiningLamp:
     def reserve(self, n: int) -> None:
         """Make room for ``n`` particles now, so that a later captured update need not allocate; this also fixes
         the depth pass's ``split`` for them."""
+        for child in self.frames:
+            child.reserve(n)
+        if self.frames:
+            return
         if 3 * n > self.counts.shape[0]:
             if self.device.is_capturing:
                 raise RuntimeError(
@@ -356,6 +403,10 @@ class ShiningLamp:
 
     def forget(self) -> None:
         """Drop the last update's owners, so that the next update runs cold (for benchmarks; results are equal)."""
+        for child in self.frames:
+            child.forget()
+        if self.frames:
+            return
         wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
@@ -386,6 +437,14 @@ class ShiningLamp:
             in_frame: ``positions`` are already in frame coordinates (``grid.to_frame``, computed by the caller,
                 e.g. in float64 before the cast to float32), so the lamp moves nothing (and does not follow).
         """
+        if self.frames:
+            if in_frame:
+                raise ValueError("in_frame: frame averaging needs world positions (each frame moves them itself)")
+            for child in self.frames:
+                child.update(positions, radii, active)
+            self.n = self.frames[0].n
+            self._inputs = self.frames[0]._inputs
+            return
         self._check_array("positions", positions, wp.vec3)
         n = positions.shape[0]
         self._check_array("radii", radii, wp.float32, n)
@@ -412,6 +471,10 @@ class ShiningLamp:
     def reorder(self) -> None:
         """Sort the depth pass's work on each axis by the cell under each particle, at the last update's positions
         (a device radix sort; not inside a capture). Only a lamp with a split and ``order`` on keeps an order."""
+        if self.frames:
+            for child in self.frames:
+                child.reorder()
+            return
         if not self.order.shape[0] or self._inputs is None:
             return
         in_frame, particles = self._inputs
@@ -452,6 +515,10 @@ class ShiningLamp:
 
     def launch_seed(self) -> None:
         """Update step 1: clear the counts, and re-evaluate each ray's last owners at the current positions."""
+        if self.frames:
+            for child in self.frames:
+                child.launch_seed()
+            return
         in_frame, particles = self._inputs
         rays = self._rays[in_frame]
         kernel, inputs = lamp_kernels.lamp_seed, [rays, particles, self._ray]
@@ -467,6 +534,10 @@ class ShiningLamp:
 
     def launch_depth(self) -> None:
         """Update step 2: every sphere offers its depth to every ray it meets."""
+        if self.frames:
+            for child in self.frames:
+                child.launch_depth()
+            return
         in_frame, particles = self._inputs
         if self.n == 0:
             return
@@ -494,6 +565,10 @@ class ShiningLamp:
     def launch_scatter(self) -> None:
         """Update step 3: each lit cell adds its +1 / -1 to its owners' counts (the area criterion: each cell
         shares its units among the spheres visible in it)."""
+        if self.frames:
+            for child in self.frames:
+                child.launch_scatter()
+            return
         if self.n == 0:
             return
         in_frame, particles = self._inputs
@@ -529,15 +604,21 @@ class ShiningLamp:
         # An order sorted for another particle count would skip particles: run unordered until the next reorder.
         return self.order if self._ordered_n == self.n else self._no_order
 
+    def _force_area(self) -> np.ndarray:
+        # Cell area per count, with the frame's share of an average: the one expression host and device use.
+        return self.grid.cell_area / (self.unit / self._weight)
+
     def force_factors(self, pressure) -> np.ndarray:
         """F[j, a]: world force component j [N] per count on lamp axis a (``frames.lamp_force_factors``), for
-        the grid's rotation: the exact float64 forces are ``counts_numpy() @ F.T``.
+        the grid's rotation: the exact float64 forces are ``counts_numpy() @ F.T``, summed over a in order.
 
         Args:
             pressure: A number, three numbers (per lamp axis) or a stress tensor diagonal in the lamp frame [Pa].
         """
+        if self.frames:
+            raise ValueError("force_factors: one per frame; use lamp.frames[k].force_factors")
         p, _ = lamp_pressure(pressure, self.grid.rotation)
-        return lamp_force_factors(p, self.grid.cell_area, self.grid.rotation, unit=self.unit)
+        return lamp_force_factors(p, self._force_area(), self.grid.rotation)
 
     def add_forces(self, forces: wp.array, pressure) -> None:
         """Add each particle's forces of the last update to ``forces``, in world coordinates.
@@ -553,6 +634,10 @@ class ShiningLamp:
         """
         if self._inputs is None:
             raise RuntimeError("add_forces: call update (or apply) first; there are no counts yet")
+        if self.frames:
+            for child in self.frames:
+                child.add_forces(forces, pressure)
+            return
         self._check_array("forces", forces, wp.vec3, self.n)
         const = wp.vec3d(0.0, 0.0, 0.0)
         arr = self._no_pressure
@@ -563,7 +648,7 @@ class ShiningLamp:
             arr = pressure
         else:
             p, _ = lamp_pressure(pressure, self.grid.rotation)
-            lamp_force_factors(p, self.grid.cell_area, unit=self.unit)  # refuses P A outside the exact range
+            self.force_factors(p)  # refuses P A outside the exact range
             const = wp.vec3d(*p)
         if self.n > 0:
             in_frame = self._inputs[0]
@@ -572,7 +657,7 @@ class ShiningLamp:
                 dim=self.n,
                 inputs=[
                     self.counts,
-                    wp.vec3d(*(self.grid.cell_area / self.unit)),
+                    wp.vec3d(*self._force_area()),
                     self._frame_rotation if in_frame else self.rotation,
                     const,
                     arr,
@@ -587,8 +672,20 @@ class ShiningLamp:
         self.add_forces(forces, pressure)
 
     def counts_numpy(self) -> np.ndarray:
-        """Signed counts of the last update, shape (N, 3), int64 (copies to the host)."""
+        """Signed counts of the last update, shape (N, 3), int64 (copies to the host); with frame averaging,
+        one set per frame, shape (frames, N, 3)."""
+        if self.frames:
+            return np.stack([child.counts_numpy() for child in self.frames])
         return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+
+    def forces_numpy(self, pressure) -> np.ndarray:
+        """The exact float64 forces of the last update in world coordinates [N], shape (N, 3), summed over frames
+        (a host copy: what :func:`lamp_forces` returns)."""
+        if self.frames:
+            return sum(child.forces_numpy(pressure) for child in self.frames)
+        c = self.counts_numpy()
+        f = self.force_factors(pressure)
+        return (c[:, :1] * f[:, 0] + c[:, 1:2] * f[:, 1]) + c[:, 2:3] * f[:, 2]
 
     def frame_origin(self) -> np.ndarray:
         """The frame origin of the last update in frame coordinates [m], float64: ``grid.origin``, moved by whole
@@ -607,6 +704,8 @@ class ShiningLamp:
             pressure: Pressure [Pa] (as :meth:`add_forces` takes it on the host), for the resultant force and moment.
             moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
         """
+        if self.frames:
+            raise ValueError("diagnostics: one per frame; use lamp.frames[k].diagnostics()")
         diag = self.diag.numpy()
         counts = self.counts_numpy()
         keys = self.keys.numpy()
@@ -633,7 +732,7 @@ class ShiningLamp:
             int(diag[3]),
         )
         if pressure is not None:
-            f = counts @ self.force_factors(pressure).T
+            f = self.forces_numpy(pressure)
             out.force = f.sum(axis=0)
             if positions is not None:
                 x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
@@ -705,14 +804,14 @@ def lamp_update(
     return lamp
 
 
-def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
+def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.ndarray:
     """Shining-lamp forces on a body of spheres under fluid pressure, in world coordinates [N], float64.
 
     Each cell of the three lamp grids shines from both ends of its axis; the first sphere its ray meets takes
     P_a A_cell along the ray, at its centre (or, with ``criterion="area"``, each visible sphere its share of the
     cell). Opposite lamps light the same cells, so with all six lamps on the forces sum to exactly zero on every
-    axis, in any order of summation (also in a rotated frame: each world component is a sum of integer multiples of
-    one power of two); with a subset of lamps only axes whose two lamps are on balance.
+    axis, in any order of summation (also in a rotated frame, and averaged over frames: each world component is a
+    sum of integer multiples of powers of two); with a subset of lamps only axes whose two lamps are on balance.
 
     Args:
         centers: Particle centres [m], shape (N, 3), float64 welcome: the grid origin is subtracted in float64
@@ -722,6 +821,8 @@ def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
             symmetric 3 x 3 stress tensor (compression positive), which the lamp applies in its principal frame
             (without ``grid``: the enclosing grid is built in that frame; with ``grid``: the tensor must be
             diagonal in the grid's frame).
+        frames: Average over this many fixed lamp frames (``frames.lamp_frame_rotations``), each with its own
+            enclosing grid (or ``grid`` turned, :meth:`LampGrid.rotated`); needs an isotropic pressure.
         **options: The keyword arguments of :func:`lamp_update` and :class:`ShiningLamp`: ``grid``,
             ``cells_per_diameter``, ``criterion``, ``lamps``, ``active``, ``device``, ``depth_slots``, ``resolver``,
             ``subpoints``, ``split``, ``order``, ``max_bytes``.
@@ -729,15 +830,24 @@ def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
     """
-    grid = options.get("grid")
-    p, frame = lamp_pressure(pressure, None if grid is None else getattr(grid, "rotation", None))
-    if frame is not None and options.get("grid") is None:
-        c, r = check_particles(centers, radii)
-        if len(r):
-            options["grid"] = LampGrid.enclosing(
-                c, r, cells_per_diameter=options.pop("cells_per_diameter", 4), rotation=frame
-            )
-    lamp = lamp_update(centers, radii, **options)
-    counts = lamp.counts_numpy()
-    factors = lamp_force_factors(p, lamp.grid.cell_area, lamp.grid.rotation, unit=lamp.unit)
-    return (counts[:, :1] * factors[:, 0] + counts[:, 1:2] * factors[:, 1]) + counts[:, 2:3] * factors[:, 2]
+    grid = options.pop("grid", None)
+    if grid is not None and not isinstance(grid, LampGrid):
+        raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+    p, frame = lamp_pressure(pressure, None if grid is None else grid.rotation)
+    frames = _check_int("frames", frames, 1, 1 << 10)
+    if frames > 1 and np.ptp(p) > 0:
+        raise ValueError("frames: frame averaging needs an isotropic pressure (the lamp axes turn from frame to frame)")
+    c, r = check_particles(centers, radii)
+    cells_per_diameter = options.pop("cells_per_diameter", 4)
+    base = np.eye(3) if frame is None else frame
+    total = np.zeros((len(r), 3))
+    for rotation in lamp_frame_rotations(frames):
+        g = grid
+        if g is not None:
+            g = g.rotated(rotation)
+        elif len(r):
+            g = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter, rotation=base @ rotation)
+        lamp = lamp_update(c, r, grid=g, cells_per_diameter=cells_per_diameter, **options)
+        lamp._weight = 1.0 / frames
+        total = total + lamp.forces_numpy(p)
+    return total
