@@ -22,15 +22,17 @@ def body(rng, n=120):
     return np.round(c * 64) / 64, r
 
 
-@pytest.mark.parametrize("criterion", [1, "area"])
-def test_body_translating_ten_diameters_matches_a_grid_at_the_same_origin(device, rng, criterion):
+@pytest.mark.parametrize(
+    "options", [{}, {"criterion": 0}, {"criterion": "area"}, {"surfaces": "all", "probe_radius": 0.15}], ids=str
+)
+def test_body_translating_ten_diameters_matches_a_grid_at_the_same_origin(device, rng, options):
     """200 captured steps move the body 10 diameters: after every replay the lamp's frame origin has moved by
     whole cells, no particle is outside, and the forces equal lamp_forces on those positions with a grid at that
-    origin, bitwise (float32)."""
+    origin, bitwise (float32), for criteria 1, 0 and area and the wetted surface."""
     c, r = body(rng)
     h = 0.125
     grid = wl.LampGrid([-1.0] * 3, [3.0] * 3, h)  # capacity 32^3 cells, the body about 2.5 across
-    lamp = wl.ShiningLamp(grid, criterion=criterion, follow=True, device=device)
+    lamp = wl.ShiningLamp(grid, follow=True, device=device, **options)
     pos, rad = device_arrays(c, r, device)
     forces = wp.zeros(len(r), dtype=wp.vec3, device=device)
     step = wp.vec3(0.025, -0.0125, 0.0375)  # 200 steps: |path| = 9.4 ~ 10 mean diameters (0.45)
@@ -47,7 +49,7 @@ def test_body_translating_ten_diameters_matches_a_grid_at_the_same_origin(device
             origin = lamp.frame_origin()
             shifts.add(tuple(np.round((origin - grid.origin) / h).astype(int)))
             same = wl.LampGrid(origin, origin + 32 * h, h)
-            expected = wl.lamp_forces(x, r, P, grid=same, criterion=criterion, device=device)
+            expected = wl.lamp_forces(x, r, P, grid=same, device=device, **options)
             np.testing.assert_array_equal(forces.numpy(), expected.astype(np.float32), err_msg=f"step {k}")
             assert lamp.diagnostics().outside == 0
     assert len(shifts) > 5  # the grid did move, many times

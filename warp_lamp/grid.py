@@ -99,6 +99,7 @@ class LampGrid:
         cells_per_diameter: float = 4,
         margin: float | None = None,
         rotation=None,
+        probe_radius: float = 0.0,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ) -> LampGrid:
         """A box grid around the particles, cell size = mean diameter / ``cells_per_diameter``.
@@ -107,9 +108,11 @@ class LampGrid:
             centers: Particle centres [m], shape (N, 3), N >= 1.
             radii: Particle radii [m], shape (N,).
             cells_per_diameter: Cells per mean particle diameter (the memo studies 2 ... 16).
-            margin: Free space around the particles' bounding box [m]; defaults to one mean diameter, so that
-                particles can move a little between refits without poking out.
+            margin: Free space around the particles' bounding box [m]; defaults to one mean diameter plus
+                ``probe_radius``, so that particles can move a little between refits without poking out (and the
+                wetted-surface mode's probe can come in from outside on every side).
             rotation: Orientation of the lamp frame (as for the box form): the box is fitted in that frame.
+            probe_radius: The wetted-surface mode's probe radius [m], added to the default margin.
             max_bytes: Budget for the per-cell arrays [bytes].
         """
         centers, radii = check_particles(centers, radii)
@@ -120,7 +123,9 @@ class LampGrid:
         rotation = lamp_rotation(rotation)
         centers = centers @ rotation  # frame coordinates: R^T x for each row x
         diameter = 2.0 * float(np.mean(radii))
-        margin = diameter if margin is None else float(margin)
+        if not (np.isfinite(probe_radius) and probe_radius >= 0):
+            raise ValueError(f"probe_radius: must be finite and >= 0, got {probe_radius!r}")
+        margin = diameter + float(probe_radius) if margin is None else float(margin)
         if not (np.isfinite(margin) and margin >= 0):
             raise ValueError(f"margin: must be finite and >= 0, got {margin!r}")
         lo = np.min(centers - radii[:, None], axis=0) - margin

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
-from warp_lamp.frames import lamp_force_factors, lamp_frame_rotations, lamp_pressure
+from warp_lamp.frames import lamp_force_factors, lamp_frame_rotations, lamp_pressure, pressure_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.kernels.footprint import RAY_CORNER
-from warp_lamp.validate import DEFAULT_MAX_BYTES, check_budget, check_particles, check_pressure
+from warp_lamp.validate import DEFAULT_MAX_BYTES, LAMPS, check_budget, check_particles, lamp_mask, lamp_names
+from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, WettedSurface
 
 __all__ = [
     "LAMPS",
@@ -27,34 +27,7 @@ __all__ = [
     "pressure_area",
 ]
 
-#: Lamp names in bit order: "-x" is the lamp at minus infinity on x, shining toward +x.
-LAMPS = ("-x", "+x", "-y", "+y", "-z", "+z")
 _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
-
-
-def lamp_names(lamps) -> tuple[str, ...]:
-    """The lamps that are on, as a tuple of names from :data:`LAMPS`: ``"all"``, one name, or any iterable of names.
-
-    The iterable is read once, here, so that a generator is not consumed by validation and then seen empty.
-    """
-    if isinstance(lamps, str):
-        lamps = LAMPS if lamps == "all" else (lamps,)
-    if not isinstance(lamps, Iterable):
-        raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {lamps!r}")
-    names = tuple(lamps)
-    for name in names:
-        if name not in LAMPS:
-            raise ValueError(f"lamps: unknown lamp {name!r}; expected 'all' or names from {LAMPS}")
-    return names
-
-
-def lamp_mask(lamps) -> int:
-    """Bit mask of the lamps that are on (bit k for ``LAMPS[k]``); ``lamps`` as for :func:`lamp_names`."""
-    mask = 0
-    for name in lamp_names(lamps):
-        mask |= 1 << LAMPS.index(name)
-    return mask
-
 
 #: The area criterion's fixed-point units per cell, per resolver (sub-points: S^2, one per sub-point).
 AREA_EXACT_UNIT = 4096
@@ -71,20 +44,6 @@ def _check_criterion(criterion) -> int | str:
             f"{criterion!r}"
         )
     return int(criterion)
-
-
-def _round26(x: np.ndarray) -> np.ndarray:
-    t = x * 134217729.0
-    return t - (t - x)
-
-
-def pressure_area(pressure, grid: LampGrid) -> np.ndarray:
-    """Force per lit cell on each axis [N], shape (3,): P_a times the cell area of grid a.
-
-    Rounded to 26 significant bits (relative change below 1.5e-8), so that P_a A_a times any cell count is
-    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation.
-    """
-    return _round26(check_pressure(pressure) * grid.cell_area)
 
 
 def _decode_depth(keys: np.ndarray) -> np.ndarray:
@@ -230,6 +189,9 @@ class ShiningLamp:
         split: int | str = "auto",
         order: bool | str = "auto",
         frames: int = 1,
+        surfaces: str = "first",
+        probe_radius: float | None = None,
+        max_rounds: int = DEFAULT_MAX_ROUNDS,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
@@ -264,6 +226,19 @@ class ShiningLamp:
                 sort), so that a warp's particles read the same rows: at the first update outside a capture, and
                 again whenever :meth:`reorder` is called. ``"auto"``: for large bodies on a GPU. The result does
                 not depend on it; a body that moves far from where it was sorted only loses speed.
+            surfaces: ``"first"``: each lamp loads the first sphere its rays meet (the memo's lamp). ``"all"``:
+                every wetted surface is loaded: the fluid is the region a probe ball of ``probe_radius`` can reach
+                from outside without overlapping a sphere, and every crossing of its boundary along a lamp ray
+                loads the nearest sphere (:mod:`warp_lamp.wetted`): slot walls, tunnels and overhangs get their
+                pressure, sealed voids stay dry, and the probe bridges pores narrower than itself. Needs the box
+                form of the grid, with a margin of ``probe_radius`` plus a cell beyond the particles, and criterion 1.
+            probe_radius: ``surfaces="all"``: the probe radius rho [m]. For a membrane on the surface particles,
+                a quarter to one mean radius (a dense packing keeps the probe out of its pores from about a third
+                of a diameter); for mud, which fills a trough several diameters wide but not the pores, one to two
+                mean radii (concave corners round off to rho; as rho grows the loaded surface becomes the convex
+                hull); rho -> 0 lets the fluid into every connected pore.
+            max_rounds: ``surfaces="all"``: bound on the connectivity solve's rounds; a solve that needs more is
+                cut short and counted in the diagnostics (the balance still holds).
             frames: Frame averaging: run the lamp in this many fixed orientations (``frames.lamp_frame_rotations``:
                 the grid's own first, then a low-discrepancy set turned by it) and average the forces. Each frame's
                 grid is the smallest box in that frame around ``grid``'s box, with its cells (cubic cells needed).
@@ -297,6 +272,9 @@ class ShiningLamp:
                 subpoints=subpoints,
                 split=split,
                 order=order,
+                surfaces=surfaces,
+                probe_radius=probe_radius,
+                max_rounds=max_rounds,
                 max_bytes=max_bytes,
             )
             self.frames = [ShiningLamp(g, **options) for g in grids]
@@ -333,16 +311,33 @@ class ShiningLamp:
             self.unit = AREA_EXACT_UNIT if resolver == "exact" else self.subpoints**2
         # Where the depth pass's rays sit: cell centres or rectangles, or the area criterion's cell corners.
         self._ray = int(RAY_CORNER) if area else self.criterion
-        samples = grid.n_samples if area else grid.n_cells
-        self.nbytes = 2 * self.depth_slots * samples * 8
-        check_budget(
-            self.nbytes,
-            max_bytes,
-            f"depth_slots: {self.depth_slots} keys per lamp on {samples:,} rays need {self.nbytes:,} bytes",
-            "raise max_bytes, lower depth_slots or use larger cells",
-        )
         if follow and not grid.is_box:
             raise ValueError("follow: needs the box form of the grid (LampGrid(lower, upper, cell) or enclosing)")
+        if surfaces not in ("first", "all"):
+            raise ValueError(f"surfaces: expected 'first' or 'all', got {surfaces!r}")
+        self.surfaces = surfaces
+        self._wet = None
+        if surfaces == "all":
+            if probe_radius is None:
+                raise ValueError("probe_radius: surfaces='all' needs the probe radius rho [m] (see the docstring)")
+            if self.criterion != 1:
+                raise ValueError("criterion: surfaces='all' loads crossings along the cell-centre rays (criterion 1)")
+            self._wet = WettedSurface(
+                grid, probe_radius=probe_radius, lamps=lamps, max_rounds=max_rounds, device=d, max_bytes=max_bytes
+            )
+            self.nbytes = self._wet.nbytes
+            samples = 0
+        elif probe_radius is not None:
+            raise ValueError("probe_radius: only with surfaces='all'")
+        else:
+            samples = grid.n_samples if area else grid.n_cells
+            self.nbytes = 2 * self.depth_slots * samples * 8
+            check_budget(
+                self.nbytes,
+                max_bytes,
+                f"depth_slots: {self.depth_slots} keys per lamp on {samples:,} rays need {self.nbytes:,} bytes",
+                "raise max_bytes, lower depth_slots or use larger cells",
+            )
         self.follow = bool(follow)
         self._split = split
         self.split = 0
@@ -367,6 +362,7 @@ class ShiningLamp:
             *(int(x) for x in np.concatenate([[0], np.cumsum((grid.counts[:, 0] + 1) * (grid.counts[:, 1] + 1))[:2]]))
         )
         self.keys = wp.full(2 * self.depth_slots * samples, value=_EMPTY, dtype=wp.uint64, device=d)
+        self._frame_positions = wp.zeros(0, dtype=wp.vec3, device=d)
         self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
         self.counts = wp.zeros(0, dtype=wp.int64, device=d)
         if self.follow:
@@ -391,6 +387,10 @@ class ShiningLamp:
                     "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
                 )
             self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
+            if self._wet is not None:
+                self._wet.reserve(n)
+                self.counts = self._wet.counts
+                self._frame_positions = wp.zeros(n, dtype=wp.vec3, device=self.device)
             self.split = _auto_split(n, self.device) if self._split == "auto" else int(self._split)
             if self.depth_slots > 1:
                 self.split = max(self.split, 1)  # the D-slot depth pass is compiled for shared work only
@@ -462,11 +462,27 @@ class ShiningLamp:
         self._inputs = (bool(in_frame), particles)
         if self.follow and not in_frame:
             self.launch_follow()
+        if self._wet is not None:
+            self._update_wetted(particles, radii, active, in_frame)
+            return
         if self.order.shape[0] and self._ordered_n != n and not self.device.is_capturing:
             self.reorder()
         self.launch_seed()
         self.launch_depth()
         self.launch_scatter()
+
+    def _update_wetted(self, particles, radii, active, in_frame) -> None:
+        positions = particles.positions
+        if not in_frame:
+            wp.launch(
+                lamp_kernels.lamp_to_frame,
+                dim=self.n,
+                inputs=[self._cells[False], particles],
+                outputs=[self._frame_positions],
+                device=self.device,
+            )
+            positions = self._frame_positions[: self.n]
+        self._wet.update(positions, radii, None if active is self._no_active else active)
 
     def reorder(self) -> None:
         """Sort the depth pass's work on each axis by the cell under each particle, at the last update's positions
@@ -696,8 +712,10 @@ class ShiningLamp:
         k = self.follow_shift.numpy()[0].astype(np.float64)
         return self.grid.origin + k * self.grid.box_cell
 
-    def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> LampDiagnostics:
-        """Surface flags, owner and depth maps, lit cells, skip counters, and resultants (host copies).
+    def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> LampDiagnostics | WettedDiagnostics:
+        """Surface flags, owner and depth maps, lit cells, skip counters, and resultants (host copies); with
+        ``surfaces="all"``, the wetted surface's :class:`~warp_lamp.wetted.WettedDiagnostics` (voxel maps, per-ray
+        crossings, the connectivity solve), with the resultant force in world coordinates.
 
         Args:
             positions: Particle centres in world coordinates [m], shape (N, 3) (numpy or warp), for the moment.
@@ -706,6 +724,11 @@ class ShiningLamp:
         """
         if self.frames:
             raise ValueError("diagnostics: one per frame; use lamp.frames[k].diagnostics()")
+        if self._wet is not None:
+            out = self._wet.diagnostics()
+            if pressure is not None:
+                out.force = self.forces_numpy(pressure).sum(axis=0)
+            return out
         diag = self.diag.numpy()
         counts = self.counts_numpy()
         keys = self.keys.numpy()
@@ -774,7 +797,8 @@ def lamp_update(
         active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
         device: Warp device; the current default when None.
         **lamp_options: Further keywords of :class:`ShiningLamp` (``depth_slots``, ``resolver``, ``subpoints``,
-            ``split``, ``order``, ``max_bytes``).
+            ``surfaces``, ``probe_radius``, ``max_rounds``, ``split``, ``order``, ``max_bytes``); with
+            ``surfaces="all"`` the default grid's margin grows by ``probe_radius``.
     """
     c, r = check_particles(centers, radii)
     criterion = _check_criterion(criterion)
@@ -789,10 +813,11 @@ def lamp_update(
     if grid is None:
         if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
             raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
+        probe = lamp_options.get("probe_radius") if lamp_options.get("surfaces") == "all" else None
         if n == 0:
             grid = LampGrid([0.0] * 3, [1.0] * 3, 1.0)
         else:
-            grid = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter)
+            grid = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter, probe_radius=probe or 0.0)
     elif not isinstance(grid, LampGrid):
         raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
     device = wp.get_device(device)
@@ -825,7 +850,7 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
             enclosing grid (or ``grid`` turned, :meth:`LampGrid.rotated`); needs an isotropic pressure.
         **options: The keyword arguments of :func:`lamp_update` and :class:`ShiningLamp`: ``grid``,
             ``cells_per_diameter``, ``criterion``, ``lamps``, ``active``, ``device``, ``depth_slots``, ``resolver``,
-            ``subpoints``, ``split``, ``order``, ``max_bytes``.
+            ``subpoints``, ``surfaces``, ``probe_radius``, ``max_rounds``, ``split``, ``order``, ``max_bytes``.
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
@@ -846,7 +871,10 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
         if g is not None:
             g = g.rotated(rotation)
         elif len(r):
-            g = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter, rotation=base @ rotation)
+            probe = options.get("probe_radius") if options.get("surfaces") == "all" else None
+            g = LampGrid.enclosing(
+                c, r, cells_per_diameter=cells_per_diameter, rotation=base @ rotation, probe_radius=probe or 0.0
+            )
         lamp = lamp_update(c, r, grid=g, cells_per_diameter=cells_per_diameter, **options)
         lamp._weight = 1.0 / frames
         total = total + lamp.forces_numpy(p)

@@ -11,13 +11,17 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "CutScene",
     "Scene",
     "relax_packing",
+    "scene_cavity_block",
     "scene_lattice_ball",
     "scene_lattice_box",
     "scene_lone_sphere",
     "scene_overlapping_box",
+    "scene_slot_block",
     "scene_sphere_specimen",
+    "scene_tunnel_block",
 ]
 
 #: Bump when the packing algorithm changes, so that cached specimens are rebuilt.
@@ -286,3 +290,188 @@ def scene_overlapping_box(
     params = dict(kind="box", r=radius, size=size.tolist(), phi=solid_fraction, ov=max_overlap, seed=seed)
     centers, radii = _cached_packing("box", params, build, cache=cache)
     return Scene(f"overlapping box, r = {radius * 1e3:g} mm", centers, radii, size / 2.0)
+
+
+# --- cut blocks for the wetted-surface mode (warp_lamp.wetted) --------------------------------------------
+
+
+@dataclass
+class CutScene(Scene):
+    """A jittered lattice block (:func:`scene_lattice_box`) with lattice sites removed.
+
+    Attributes:
+        index: Lattice index (ix, iy, iz) of each particle, shape (N, 3), int64.
+        kept: Index of each particle in the uncut block ``full()``, shape (N,), int64.
+        cut: What was cut, in lattice units times the spacing [m] (see each scene function).
+        block: Arguments of :func:`scene_lattice_box` that rebuild the uncut block.
+    """
+
+    index: np.ndarray = None
+    kept: np.ndarray = None
+    cut: dict = None
+    block: dict = None
+
+    def full(self) -> Scene:
+        """The same block without the cut: the same seed, so every kept particle is bitwise the same."""
+        return scene_lattice_box(**self.block)
+
+
+def _cut_block(name, n_per_axis, remove, cut, *, spacing, jitter, rmin, rmax, seed) -> CutScene:
+    block = dict(n_per_axis=n_per_axis, spacing=spacing, jitter=jitter, rmin=rmin, rmax=rmax, seed=seed)
+    full = scene_lattice_box(**block)
+    n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
+    index = np.stack(np.meshgrid(*(np.arange(k) for k in n3), indexing="ij"), axis=-1).reshape(-1, 3)
+    keep = ~remove(index)
+    kept = np.flatnonzero(keep)
+    return CutScene(
+        name,
+        full.centers[kept],
+        full.radii[kept],
+        full.center,
+        index=index[kept],
+        kept=kept,
+        cut=cut,
+        block=block,
+    )
+
+
+def scene_slot_block(
+    n_per_axis=(30, 30, 20),
+    *,
+    width: int = 6,
+    depth: int = 8,
+    spacing: float = 1.0,
+    jitter: float = 0.05,
+    rmin: float = 0.4,
+    rmax: float = 0.5,
+    seed: int = 0,
+) -> CutScene:
+    """Issue 10's slot block: a jittered cubic block with a slot cut along x into its top face.
+
+    The slot removes the ``width`` middle columns in y (iy in [j0, j0 + width)) of the top ``depth`` layers in z,
+    over the whole length in x. ``cut`` holds ``length`` L, ``width`` w, ``depth`` D (in lattice spacings times
+    the spacing [m]), the removed columns ``j0``, ``j1`` (exclusive), the first removed layer ``k0``, the wall
+    columns ``wall_lo`` = j0 - 1 and ``wall_hi`` = j1, and the ``floor`` layer k0 - 1: the particles the fluid in
+    the slot pushes on (laterally P L D on each wall, downward P L w on the floor).
+
+    Args:
+        n_per_axis: Spheres along x, y, z.
+        width: Slot width [lattice spacings].
+        depth: Slot depth [lattice spacings].
+        spacing, jitter, rmin, rmax, seed: As for :func:`scene_lattice_box`.
+    """
+    nx, ny, nz = (int(x) for x in np.broadcast_to(np.asarray(n_per_axis), (3,)))
+    if not (0 < width < ny - 1 and 0 < depth < nz):
+        raise ValueError(f"width, depth: need 0 < width < {ny - 1} and 0 < depth < {nz}, got {width}, {depth}")
+    j0 = (ny - width) // 2
+    j1 = j0 + width
+    k0 = nz - depth
+    cut = dict(
+        kind="slot",
+        length=nx * spacing,
+        width=width * spacing,
+        depth=depth * spacing,
+        j0=j0,
+        j1=j1,
+        k0=k0,
+        wall_lo=j0 - 1,
+        wall_hi=j1,
+        floor=k0 - 1,
+    )
+
+    def remove(idx):
+        return (idx[:, 1] >= j0) & (idx[:, 1] < j1) & (idx[:, 2] >= k0)
+
+    return _cut_block(
+        f"slot block {nx}x{ny}x{nz}, slot {width} x {depth}",
+        (nx, ny, nz),
+        remove,
+        cut,
+        spacing=spacing,
+        jitter=jitter,
+        rmin=rmin,
+        rmax=rmax,
+        seed=seed,
+    )
+
+
+def scene_cavity_block(
+    n_per_axis=16,
+    *,
+    cavity_radius: float = 3.0,
+    spacing: float = 1.0,
+    jitter: float = 0.05,
+    rmin: float = 0.4,
+    rmax: float = 0.5,
+    seed: int = 0,
+) -> CutScene:
+    """A jittered cubic block with a sealed spherical cavity at its centre.
+
+    The cavity removes every lattice site within ``cavity_radius`` [m] of the block's centre (unjittered
+    positions). ``cut`` holds ``center`` and ``radius``. It is sealed for any probe that cannot pass the
+    lattice's windows (rho above about sqrt(2)/2 spacing - r, i.e. 0.25 at r = 0.45).
+    """
+    n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
+    centre = (n3 - 1) / 2.0
+
+    def remove(idx):
+        return np.linalg.norm(idx - centre, axis=1) * spacing < cavity_radius
+
+    return _cut_block(
+        f"cavity block {n3[0]}x{n3[1]}x{n3[2]}, cavity r = {cavity_radius:g}",
+        tuple(int(x) for x in n3),
+        remove,
+        dict(kind="cavity", center=centre * spacing, radius=float(cavity_radius)),
+        spacing=spacing,
+        jitter=jitter,
+        rmin=rmin,
+        rmax=rmax,
+        seed=seed,
+    )
+
+
+def scene_tunnel_block(
+    n_per_axis=(20, 16, 16),
+    *,
+    tunnel_radius: float = 2.5,
+    spacing: float = 1.0,
+    jitter: float = 0.05,
+    rmin: float = 0.4,
+    rmax: float = 0.5,
+    seed: int = 0,
+) -> CutScene:
+    """A jittered cubic block with a straight tunnel bored along x through its whole length (open both ends).
+
+    The tunnel removes every lattice site within ``tunnel_radius`` [m] of the line through the block's centre
+    along x (unjittered positions). ``cut`` holds ``axis`` (y, z of the line [m]), ``radius``, ``length`` (the
+    block's x extent, n_x spacings) and ``width``, the span in y of the removed sites plus one spacing (the
+    free width between the walls' sphere centres minus one diameter, uncertain by about one diameter).
+    """
+    n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
+    centre = (n3 - 1) / 2.0
+
+    def remove(idx):
+        return np.hypot(idx[:, 1] - centre[1], idx[:, 2] - centre[2]) * spacing < tunnel_radius
+
+    nx, ny, nz = (int(x) for x in n3)
+    iy, iz = np.meshgrid(np.arange(ny), np.arange(nz), indexing="ij")
+    gone = np.hypot(iy - centre[1], iz - centre[2]) * spacing < tunnel_radius
+    span = iy[gone].max() - iy[gone].min() + 1 if gone.any() else 0
+    cut = dict(
+        kind="tunnel",
+        axis=centre[1:] * spacing,
+        radius=float(tunnel_radius),
+        length=nx * spacing,
+        width=float(span * spacing),
+    )
+    return _cut_block(
+        f"tunnel block {nx}x{ny}x{nz}, tunnel r = {tunnel_radius:g}",
+        (nx, ny, nz),
+        remove,
+        cut,
+        spacing=spacing,
+        jitter=jitter,
+        rmin=rmin,
+        rmax=rmax,
+        seed=seed,
+    )

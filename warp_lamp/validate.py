@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 __all__ = [
     "DEFAULT_MAX_BYTES",
+    "LAMPS",
     "check_box",
     "check_budget",
     "check_particles",
@@ -13,11 +16,41 @@ __all__ = [
     "check_shape",
     "check_subdivisions",
     "check_vec3",
+    "lamp_mask",
+    "lamp_names",
     "lamp_rotation",
 ]
 
 #: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
 DEFAULT_MAX_BYTES = 2 << 30
+
+
+#: Lamp names in bit order: "-x" is the lamp at minus infinity on x, shining toward +x.
+LAMPS = ("-x", "+x", "-y", "+y", "-z", "+z")
+
+
+def lamp_names(lamps) -> tuple[str, ...]:
+    """The lamps that are on, as a tuple of names from :data:`LAMPS`: ``"all"``, one name, or any iterable of names.
+
+    The iterable is read once, here, so that a generator is not consumed by validation and then seen empty.
+    """
+    if isinstance(lamps, str):
+        lamps = LAMPS if lamps == "all" else (lamps,)
+    if not isinstance(lamps, Iterable):
+        raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {lamps!r}")
+    names = tuple(lamps)
+    for name in names:
+        if name not in LAMPS:
+            raise ValueError(f"lamps: unknown lamp {name!r}; expected 'all' or names from {LAMPS}")
+    return names
+
+
+def lamp_mask(lamps) -> int:
+    """Bit mask of the lamps that are on (bit k for ``LAMPS[k]``); ``lamps`` as for :func:`lamp_names`."""
+    mask = 0
+    for name in lamp_names(lamps):
+        mask |= 1 << LAMPS.index(name)
+    return mask
 
 
 def _first_bad(mask: np.ndarray) -> int:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from warp_lamp.lamp import LAMPS, lamp_mask
+from warp_lamp.validate import LAMPS, lamp_mask
 
 __all__ = [
     "COVERED_TOL",

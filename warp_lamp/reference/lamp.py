@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from warp_lamp.grid import LampGrid
-from warp_lamp.lamp import LAMPS, lamp_mask
+from warp_lamp.validate import LAMPS, lamp_mask
 
 __all__ = ["EPS32", "LampReference", "lamp_reference"]
 

@@ -1,0 +1,160 @@
+"""Speed of the wetted-surface mode beside the first-surface lamp, per stage, on the issue's scenes.
+
+Scenes (all lamps, P = 1): the SphereTest specimen at 4 cells per diameter, the 1M jittered lattice box
+(scene_lattice_box(100)) at cell 0.25, and the slot block at 4 cells per diameter; rho = one mean radius unless
+--rho-diameters is given. On CUDA: graph replay (static and moving body: two position sets 1% of a mean radius
+apart, updated in turn), and stage times as differences of graphs that stop after each stage. On the CPU: eager.
+
+    PYTHONPATH=$PWD python bench/experiments/wetted_bench.py --device cuda:0 --out $OUT/wetted.json
+    PYTHONPATH=$PWD python bench/experiments/wetted_bench.py --device cpu --quick
+"""
+
+import argparse
+import json
+import platform
+import subprocess
+import time
+
+import numpy as np
+import warp as wp
+
+import warp_lamp as wl
+from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
+from warp_lamp.wetted import WettedSurface
+
+
+def gpu_time(fn, device, repeats, warmup=3):
+    """Median seconds between CUDA events around fn() (host-timed with a sync on the CPU)."""
+    for _ in range(warmup):
+        fn()
+    wp.synchronize_device(device)
+    times = []
+    for _ in range(repeats):
+        if device.is_cuda:
+            e0 = wp.Event(device, enable_timing=True)
+            e1 = wp.Event(device, enable_timing=True)
+            wp.record_event(e0)
+            fn()
+            wp.record_event(e1)
+            wp.synchronize_event(e1)
+            times.append(wp.get_event_elapsed_time(e0, e1) / 1e3)
+        else:
+            t0 = time.perf_counter()
+            fn()
+            wp.synchronize_device(device)
+            times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def capture(device, fn):
+    with wp.ScopedCapture(device=device) as cap:
+        fn()
+    return cap.graph
+
+
+def scenes(quick):
+    if quick:
+        box = scene_lattice_box(20)
+        spec = scene_lattice_box(12)
+        spec.name = "small lattice (quick stand-in for the specimen)"
+        slot = scene_slot_block((14, 14, 10), width=4, depth=4)
+        return [("specimen", spec, None), ("lattice", box, 0.25), ("slot", slot, None)]
+    return [
+        ("specimen", scene_sphere_specimen(), None),
+        ("lattice", scene_lattice_box(100), 0.25),
+        ("slot", scene_slot_block(), None),
+    ]
+
+
+def grid_for(scene, cell, rho):
+    r = scene.radii
+    if cell is None:
+        return wl.LampGrid.enclosing(scene.centers, r, cells_per_diameter=4, margin=2.0 * float(r.mean()) + rho)
+    lo = scene.centers.min(axis=0) - r.max() - cell - rho
+    hi = scene.centers.max(axis=0) + r.max() + cell + rho
+    return wl.LampGrid(lo, hi, cell)
+
+
+def bench_scene(name, scene, cell, rho_d, device, repeats):
+    rho = rho_d * 2.0 * float(scene.radii.mean())
+    grid = grid_for(scene, cell, rho)
+    n = scene.n
+    pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
+    jitter = np.random.default_rng(5).normal(scale=0.01 * float(scene.radii.mean()), size=(n, 3))
+    moved = wp.array((scene.centers + jitter - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
+    out = {"scene": scene.name, "particles": n, "rho": rho, "rho_over_d": rho_d, "cell": float(grid.cell[0, 0])}
+
+    lamp = wl.ShiningLamp(grid, device=device)
+    lamp.update(pos, rad)
+    surf = WettedSurface(grid, probe_radius=rho, device=device)
+    surf.update(pos, rad)
+    d = surf.diagnostics()
+    out.update(
+        voxels=list(surf.shape),
+        wetted_bytes=surf.nbytes,
+        lamp_bytes=grid.nbytes,
+        rounds=d.rounds,
+        crossings=int(sum(c.sum() for c in d.crossings.values())) * 2,
+        loaded_all=int(d.surface.sum()),
+        loaded_first=int(lamp.diagnostics().surface.sum()),
+        force_sum=(d.counts.sum(axis=0)).tolist(),
+    )
+    if device.is_cuda:
+        first = capture(device, lambda: lamp.update(pos, rad))
+        first_moving = capture(device, lambda: (lamp.update(moved, rad), lamp.update(pos, rad)))
+        out["first_replay_s"] = gpu_time(lambda: wp.capture_launch(first), device, repeats)
+        out["first_moving_s"] = gpu_time(lambda: wp.capture_launch(first_moving), device, repeats) / 2
+        graphs = {s: capture(device, lambda s=s: surf._update(pos, rad, None, stop=s)) for s in surf.STAGES}
+        moving = capture(device, lambda: (surf.update(moved, rad), surf.update(pos, rad)))
+        prev = 0.0
+        for s in surf.STAGES:
+            t = gpu_time(lambda g=graphs[s]: wp.capture_launch(g), device, repeats)
+            out[f"all_{s}_s"] = t - prev
+            prev = t
+        out["all_replay_s"] = prev
+        out["all_moving_s"] = gpu_time(lambda: wp.capture_launch(moving), device, repeats) / 2
+    else:
+        out["first_eager_s"] = gpu_time(lambda: lamp.update(pos, rad), device, repeats, warmup=1)
+        prev = 0.0
+        for s in surf.STAGES:
+            t = gpu_time(lambda s=s: surf._update(pos, rad, None, stop=s), device, repeats, warmup=1)
+            out[f"all_{s}_s"] = t - prev
+            prev = t
+        out["all_eager_s"] = prev
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--device", default=None)
+    ap.add_argument("--quick", action="store_true", help="small scenes (a CPU smoke run)")
+    ap.add_argument("--repeats", type=int, default=None, help="timed repeats (default 50 on CUDA, 5 on the CPU)")
+    ap.add_argument("--rho-diameters", type=float, nargs="*", default=[0.5], help="rho in mean diameters")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    wp.config.quiet = True
+    wp.init()
+    device = wp.get_device(args.device)
+    rows = []
+    for name, scene, cell in scenes(args.quick):
+        for rho_d in args.rho_diameters:
+            repeats = args.repeats or (50 if device.is_cuda else 5)
+            row = bench_scene(name, scene, cell, rho_d, device, repeats)
+            rows.append(row)
+            keys = [k for k in row if k.endswith("_s")]
+            times = ", ".join(f"{k[:-2]} {row[k] * 1e3:.3f} ms" for k in keys)
+            print(f"{name} (rho = {rho_d:g} d, {row['voxels']} voxels, {row['rounds']} rounds): {times}", flush=True)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        commit = None
+    result = {"device": str(device), "name": getattr(device, "name", ""), "host": platform.node(), "commit": commit}
+    result["rows"] = rows
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump(result, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

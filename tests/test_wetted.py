@@ -1,0 +1,464 @@
+"""Wetted-surface mode: kernels against the float64 reference, the issue's cut blocks, limits and hard cases."""
+
+import numpy as np
+import pytest
+import warp as wp
+from helpers import DEVICES
+
+import warp_lamp as wl
+from warp_lamp.lamp import pressure_area
+from warp_lamp.reference.wetted import wetted_reference
+from warp_lamp.scenes import scene_cavity_block, scene_slot_block, scene_tunnel_block
+from warp_lamp.validate import check_particles
+from warp_lamp.wetted import (
+    WettedSurface,
+    attribution_bound,
+    dilation_table,
+    voxel_box,
+    wetted_nbytes,
+)
+
+
+def wetted_solve(
+    centers, radii, *, probe_radius, grid=None, cells_per_diameter=4, lamps="all", active=None, device=None, **kw
+):
+    """The engine on host data (as ShiningLamp drives it, with its options for tests: keep_owners, max_rounds)."""
+    c, r = check_particles(centers, radii)
+    if grid is None:
+        grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter, probe_radius=probe_radius)
+    surface = WettedSurface(grid, probe_radius=probe_radius, lamps=lamps, device=device, **kw)
+    d = surface.device
+    act = None if active is None else wp.array((np.asarray(active) != 0).astype(np.int32), device=d)
+    pos = wp.array(grid.to_frame(c).astype(np.float32), dtype=wp.vec3, device=d)
+    surface.update(pos, wp.array(r.astype(np.float32), device=d), act)
+    return surface
+
+
+def wetted_forces(centers, radii, pressure, *, probe_radius, **kw):
+    """The public path: lamp_forces with surfaces='all'."""
+    return wl.lamp_forces(centers, radii, pressure, surfaces="all", probe_radius=probe_radius, **kw)
+
+
+P = 1.0e6
+
+
+def exact_scene(rng, n=150, extent=5.0, rmin=0.2, rmax=0.6, *, h=0.2, margin=1.5):
+    """Centres whose frame coordinates and radii float32 holds exactly, and a grid with a dyadic origin: the
+    kernels then see the reference's inputs bit for bit."""
+    lower = -margin
+    frame = rng.uniform(margin, margin + extent, (n, 3)).astype(np.float32).astype(np.float64)
+    radii = rng.uniform(rmin, rmax, n).astype(np.float32).astype(np.float64)
+    grid = wl.LampGrid([lower] * 3, [extent + margin] * 3, h)
+    return lower + frame, radii, grid
+
+
+def assert_matches(surface, ref, *, lamps_mask=0b111111):
+    """Every crossing's owner, the maps and the counts equal the reference's."""
+    d = surface.diagnostics()
+    np.testing.assert_array_equal(d.allowed, ref.allowed)
+    np.testing.assert_array_equal(d.reachable, ref.reachable)
+    np.testing.assert_array_equal(d.fluid, ref.fluid)
+    for a in range(3):
+        np.testing.assert_array_equal(d.crossings[a], ref.ray_crossings[a])
+        cr = ref.crossings[a]
+        loaded = np.where(cr["enters"], lamps_mask >> (2 * a) & 1, lamps_mask >> (2 * a + 1) & 1).astype(bool)
+        got = d.owners[a][cr["u"], cr["v"], cr["face"]]
+        np.testing.assert_array_equal(got[loaded], cr["owner"][loaded], err_msg=f"axis {a}")
+        assert (d.owners[a] != -2).sum() == loaded.sum()
+    np.testing.assert_array_equal(d.counts, ref.counts)
+    np.testing.assert_array_equal(d.hits, ref.hits)
+    assert (d.invalid, d.outside, d.tight, d.unattributed) == (ref.invalid, ref.outside, ref.tight, 0)
+    return d
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.1, 0.25, 0.7])
+def test_crossings_match_reference_on_random_scenes(device, rng, rho):
+    """Voxel maps, per-ray crossings, each crossing's sphere and the counts equal the float64 reference's."""
+    for h in (0.2, (0.17, 0.23, 0.2)):
+        centers, radii, grid = exact_scene(rng, h=h)
+        surface = wetted_solve(centers, radii, probe_radius=rho, grid=grid, keep_owners=True, device=device)
+        ref = wetted_reference(centers, radii, grid, probe_radius=rho)
+        d = assert_matches(surface, ref)
+        assert d.surface.sum() > 20
+        assert sum(len(ref.crossings[a]["face"]) for a in range(3)) > 1000
+    # Every thread decomposition (threads per sphere, bits per crossing thread) gives the same answer.
+    for slices, bits in ((3, 8), (8, 1), (1, 32)):
+        surface._slices, surface._bits = slices, bits
+        surface.update(*device_arrays(centers - grid.origin, radii, device))
+        assert_matches(surface, ref)
+
+
+def test_float64_inputs_differ_only_where_flagged(device, rng):
+    """Centres float32 cannot hold, half of them with voxel centres on their probe shell: the allowed map
+    differs only at flagged voxels, and on the kernels' own allowed map the reference's later stages agree
+    crossing for crossing, except flagged near ties."""
+    h = 0.25
+    origin = 1e3 + 1.0 / 3.0
+    grid = wl.LampGrid([origin] * 3, [origin + 7.0] * 3, h)
+    flagged = 0
+    for rho in (0.0, 0.15, 0.4):
+        random = rng.uniform(1.5, 5.5, (100, 3))
+        on_voxels = (rng.integers(6, 22, (100, 3)) + 0.5) * h
+        centers = origin + np.vstack([random, on_voxels])
+        radii = np.concatenate([rng.uniform(0.2, 0.6, 100), rng.integers(2, 4, 100) * h - rho])
+        surface = wetted_solve(centers, radii, probe_radius=rho, grid=grid, keep_owners=True, device=device)
+        d = surface.diagnostics()
+        ref = wetted_reference(centers, radii, grid, probe_radius=rho)
+        assert not ((d.allowed != ref.allowed) & ~ref.allowed_ambiguous).any()
+        flagged += int(ref.allowed_ambiguous.sum())
+        own = wetted_reference(centers, radii, grid, probe_radius=rho, allowed=d.allowed)
+        np.testing.assert_array_equal(d.fluid, own.fluid)
+        for a in range(3):
+            cr = own.crossings[a]
+            got = d.owners[a][cr["u"], cr["v"], cr["face"]]
+            assert not ((got != cr["owner"]) & ~cr["near_tie"]).any()
+    assert flagged > 100  # the check above had something to tolerate
+
+
+def test_attribution_bound_holds_and_search_never_misses(device, rng):
+    """The nearest sphere of every crossing lies within the proven bound, on dense, sparse, mixed-size and
+    quantised scenes, and no crossing goes unattributed."""
+    worst = 0.0
+    for trial in range(6):
+        n = int(rng.integers(5, 120))
+        centers, radii, grid = exact_scene(rng, n=n, rmin=0.05, rmax=0.9, h=0.25)
+        if trial % 2:
+            centers = np.round(centers * 4) / 4  # spheres on voxel faces and corners: ties
+        for rho in (0.0, 0.3, 1.2):
+            surface = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device)
+            assert surface.diagnostics().unattributed == 0
+            ref = wetted_reference(centers, radii, grid, probe_radius=rho)
+            for a in range(3):
+                dist = ref.crossings[a]["distance"]
+                assert np.all(dist <= ref.bound[a])
+                worst = max(worst, float(dist.max() / ref.bound[a]))
+    assert 0.3 < worst <= 1.0
+    assert attribution_bound(0.25, 0.0) == pytest.approx(0.25 / np.sqrt(2))
+    assert attribution_bound(0.25, 1.0) <= 2 * 1.0 + 0.25
+
+
+def test_exact_balance_polyaxial(device, rng):
+    """All six lamps: forces sum to exactly zero on every axis, also polyaxially, in any summation order."""
+    centers, radii, grid = exact_scene(rng, n=300)
+    for rho in (0.0, 0.3):
+        for pressure in (P, (3.0e6, 1.1e7, 7.7e5)):
+            f = wetted_forces(centers, radii, pressure, probe_radius=rho, grid=grid, device=device)
+            assert np.abs(f).sum() > 0
+            np.testing.assert_array_equal(f.sum(axis=0), np.zeros(3))
+            np.testing.assert_array_equal(f[::-1].sum(axis=0), np.zeros(3))
+
+
+def test_dilation_table_is_the_euclidean_ball(rng):
+    """The offset table holds exactly the offsets within rho (away from float64 ties), on anisotropic cells."""
+    for _ in range(20):
+        h = rng.uniform(0.1, 0.3, 3)
+        rho = float(rng.uniform(0.0, 1.5))
+        table = dilation_table(h, rho)
+        w = [int(np.ceil(rho / h[a])) + 1 for a in range(3)]
+        for j in range(w[1] + 1):
+            for k in range(w[2] + 1):
+                i = np.arange(w[0] + 1)
+                d = np.sqrt((i * h[0]) ** 2 + (j * h[1]) ** 2 + (k * h[2]) ** 2)
+                inside = i[d <= rho]
+                expect = inside.max() if len(inside) else -1
+                got = table[j, k] if j < table.shape[0] and k < table.shape[1] else -1
+                assert got == expect
+    assert dilation_table((0.25, 0.25, 0.25), 0.0).tolist() == [[0]]
+
+
+# --- the issue's scenes -------------------------------------------------------------------------------------
+
+
+def slot_ratios(scene, forces):
+    cut, idx = scene.cut, scene.index
+    top = idx[:, 2] >= cut["k0"]
+    lo = (idx[:, 1] == cut["wall_lo"]) & top
+    hi = (idx[:, 1] == cut["wall_hi"]) & top
+    floor = (idx[:, 2] == cut["floor"]) & (idx[:, 1] >= cut["j0"]) & (idx[:, 1] < cut["j1"])
+    side = P * cut["length"] * cut["depth"]
+    return (
+        -forces[lo, 1].sum() / side,
+        forces[hi, 1].sum() / side,
+        -forces[floor, 2].sum() / (P * cut["length"] * cut["width"]),
+    )
+
+
+def test_slot_block_walls_and_floor_loaded(device):
+    """Issue 10's slot at 4 cells per diameter, rho = one mean radius: both walls get >= 0.9 of P L D
+    laterally and the floor >= 0.9 of P L w, where the first-surface lamp gives the walls nothing."""
+    scene = scene_slot_block()
+    rho = float(scene.radii.mean())
+    f = wetted_forces(scene.centers, scene.radii, P, probe_radius=rho, cells_per_diameter=4, device=device)
+    lo, hi, floor = slot_ratios(scene, f)
+    assert lo >= 0.9 and hi >= 0.9 and floor >= 0.9, (lo, hi, floor)
+    np.testing.assert_array_equal(f.sum(axis=0), 0.0)
+    first = wl.lamp_forces(scene.centers, scene.radii, P, cells_per_diameter=4, device=device)
+    lo1, hi1, floor1 = slot_ratios(scene, first)
+    assert abs(lo1) < 0.05 and abs(hi1) < 0.05 and floor1 < 0.7
+
+
+def test_sealed_cavity_gets_the_forces_of_the_solid_block(device):
+    """A sealed spherical cavity changes no force; a probe small enough to pass the lattice's windows (not
+    sealed) does load it, so the check can fail."""
+    scene = scene_cavity_block()
+    full = scene.full()
+    grid = wl.LampGrid.enclosing(full.centers, full.radii, cells_per_diameter=4, margin=2.0)
+    f_full = wetted_forces(full.centers, full.radii, P, probe_radius=0.45, grid=grid, device=device)
+    f_cut = wetted_forces(scene.centers, scene.radii, P, probe_radius=0.45, grid=grid, device=device)
+    removed = np.setdiff1d(np.arange(full.n), scene.kept)
+    assert not f_full[removed].any()
+    np.testing.assert_array_equal(f_cut, f_full[scene.kept])
+    s = wetted_solve(scene.centers, scene.radii, probe_radius=0.1, grid=grid, device=device)
+    f_small = s.counts_numpy() * pressure_area(P, grid)
+    f_small_full = wetted_forces(full.centers, full.radii, P, probe_radius=0.1, grid=grid, device=device)
+    assert (f_small != f_small_full[scene.kept]).any(axis=1).sum() > 50
+
+
+def test_tunnel_wall_loaded_by_its_projected_width(device):
+    """A tunnel bored through a block: the z-resultant on the particles above its axis rises by P w L, w the
+    tunnel's width to within one particle diameter, and its wall particles are loaded."""
+    scene = scene_tunnel_block()
+    full = scene.full()
+    rho = float(full.radii.mean())
+    grid = wl.LampGrid.enclosing(full.centers, full.radii, cells_per_diameter=4, margin=2.0 + rho)
+    f_full = wetted_forces(full.centers, full.radii, P, probe_radius=rho, grid=grid, device=device)
+    s = wetted_solve(scene.centers, scene.radii, probe_radius=rho, grid=grid, device=device)
+    f_cut = s.counts_numpy() * pressure_area(P, grid)
+    above = full.centers[:, 2] > scene.cut["axis"][1]
+    delta = f_cut[above[scene.kept], 2].sum() - f_full[above, 2].sum()
+    width = delta / (P * scene.cut["length"])
+    assert abs(width - scene.cut["width"]) <= 2.0 * rho, (width, scene.cut["width"])
+    ring = np.hypot(*(scene.index[:, 1:] - (np.array(scene.block["n_per_axis"][1:]) - 1) / 2.0).T) < 4.0
+    assert s.diagnostics().surface[ring].mean() > 0.5
+
+
+# --- limits -----------------------------------------------------------------------------------------------
+
+
+def test_large_probe_closes_to_the_convex_hull(device):
+    """rho several times the body: the fluid boundary is the convex hull of the spheres, bridging a notch."""
+    from scipy.spatial import ConvexHull
+
+    # A U of spheres: the notch between the arms is open to a small probe and bridged by a large one.
+    pts = [(x, 0.0, 0.0) for x in np.arange(0.0, 3.1, 0.5)]
+    pts += [(0.0, y, 0.0) for y in np.arange(0.5, 2.6, 0.5)] + [(3.0, y, 0.0) for y in np.arange(0.5, 2.6, 0.5)]
+    centers = np.array(pts, dtype=np.float64)
+    radii = np.full(len(centers), 0.375)
+    rho, h = 8.0, 0.25
+    lower = centers.min(axis=0) - radii[0] - rho - 2 * h
+    upper = centers.max(axis=0) + radii[0] + rho + 2 * h
+    grid = wl.LampGrid(lower, upper, h)
+    d = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
+    assert d.tight == 0
+    sphere = np.random.default_rng(0).normal(size=(200, 3))
+    sphere /= np.linalg.norm(sphere, axis=1)[:, None]
+    hull = ConvexHull((centers[:, None, :] + radii[0] * sphere[None]).reshape(-1, 3))
+    n, hh = voxel_box(grid)
+    xs = [grid.origin[a] + (np.arange(n[a]) + 0.5) * hh[a] for a in range(3)]
+    x = np.stack(np.meshgrid(*xs, indexing="ij"), axis=-1)
+    signed = (x @ hull.equations[:, :3].T + hull.equations[:, 3]).max(axis=-1)  # > 0 outside the hull
+    sag = 3.0**2 / (8 * rho) + np.sqrt(3) * h  # chord 3 under a ball of radius rho, plus a voxel diagonal
+    assert not d.fluid[signed < -sag].any()
+    assert d.fluid[signed > np.sqrt(3) * h].all()
+    notch = (np.abs(x[..., 0] - 1.5) < 0.5) & (x[..., 1] > 1.0) & (x[..., 1] < 2.0) & (np.abs(x[..., 2]) < 0.2)
+    assert notch.any() and not d.fluid[notch].any()
+    small = wetted_solve(centers, radii, probe_radius=0.1, grid=grid, device=device).diagnostics()
+    assert small.fluid[notch].all()
+
+
+def test_zero_probe_immersed_spheres_cancel(device, rng):
+    """rho = 0: the fluid reaches every gap; a sphere clear of its neighbours takes both crossings of every ray
+    it meets (its loads cancel exactly), and in a dense packing the net loads nearly cancel."""
+    centers = np.stack(np.meshgrid(*[np.arange(4) * 1.5] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    centers = centers + rng.uniform(-0.1, 0.1, centers.shape)
+    radii = rng.uniform(0.4, 0.5, len(centers))  # gaps >= 0.3, more than a voxel
+    d = wetted_solve(centers, radii, probe_radius=0.0, cells_per_diameter=6, device=device).diagnostics()
+    assert d.surface.all()
+    np.testing.assert_array_equal(d.counts, 0)
+    # A jittered cubic packing whose neighbours touch or nearly: the fluid still enters every pore.
+    block = wl.scenes.scene_lattice_box(8)
+    d = wetted_solve(block.centers, block.radii, probe_radius=0.0, cells_per_diameter=4, device=device).diagnostics()
+    inner = np.all((block.centers > 0.5) & (block.centers < 6.5), axis=1)
+    assert d.surface[inner].all()
+    net = np.abs(d.counts[inner]).sum(axis=1)
+    assert net.sum() < 0.1 * d.hits[inner].sum(), (net.sum(), d.hits[inner].sum())
+
+
+# --- hard cases and bad input -----------------------------------------------------------------------------
+
+
+def test_lamp_subsets_load_only_their_crossings(device, rng):
+    """With -z off (a platen), x and y balance, z is pushed down only, and owners match the reference."""
+    centers, radii, grid = exact_scene(rng)
+    lamps = ["-x", "+x", "-y", "+y", "+z"]
+    surface = wetted_solve(centers, radii, probe_radius=0.2, grid=grid, lamps=lamps, keep_owners=True, device=device)
+    ref = wetted_reference(centers, radii, grid, probe_radius=0.2, lamps=lamps)
+    d = assert_matches(surface, ref, lamps_mask=wl.lamp.lamp_mask(lamps))
+    total = d.counts.sum(axis=0)
+    assert total[0] == 0 and total[1] == 0 and total[2] < 0
+    assert np.all(d.counts[:, 2] <= 0)
+    assert d.loaded["-z"] == 0 and d.loaded["+z"] > 0
+
+
+def test_active_mask_and_invalid_particles(device, rng):
+    """Inactive particles are absent; NaN positions and radii <= 0 are skipped and counted on the device, and
+    the rest get bitwise the forces of the scene without them."""
+    centers, radii, grid = exact_scene(rng, n=120)
+    active = rng.random(len(radii)) > 0.3
+    masked = wetted_forces(centers, radii, P, probe_radius=0.2, grid=grid, active=active, device=device)
+    subset = wetted_forces(centers[active], radii[active], P, probe_radius=0.2, grid=grid, device=device)
+    assert not masked[~active].any()
+    np.testing.assert_array_equal(masked[active], subset)
+    pos = (centers - grid.origin).astype(np.float32)
+    rad = radii.astype(np.float32)
+    pos[3] = np.nan
+    rad[7], rad[8], rad[9] = 0.0, -1.0, np.inf
+    surface = WettedSurface(grid, probe_radius=0.2, device=device)
+    surface.update(wp.array(pos, dtype=wp.vec3, device=device), wp.array(rad, device=device))
+    d = surface.diagnostics()
+    assert d.invalid == 4
+    valid = np.ones(len(radii), dtype=bool)
+    valid[[3, 7, 8, 9]] = False
+    expected = wetted_forces(centers, radii, P, probe_radius=0.2, grid=grid, active=valid, device=device)
+    np.testing.assert_array_equal(d.counts * pressure_area(P, grid), expected)
+
+
+def test_particles_outside_the_box_are_counted_and_balance(device, rng):
+    """A box cutting through the body: outside and tight particles are counted as the reference counts them,
+    every crossing still matches, and the forces still balance exactly."""
+    centers, radii, _ = exact_scene(rng, n=150)
+    grid = wl.LampGrid([0.0] * 3, [4.0] * 3, 0.125)
+    surface = wetted_solve(centers, radii, probe_radius=0.3, grid=grid, keep_owners=True, device=device)
+    ref = wetted_reference(centers, radii, grid, probe_radius=0.3)
+    d = assert_matches(surface, ref)
+    assert d.outside > 20 and d.tight > d.outside
+    np.testing.assert_array_equal(d.counts.sum(axis=0), 0)
+
+
+def test_no_particles_and_memo_form_grids(device):
+    """N = 0 loads nothing; the memo's 18-number form is refused unless its grids are one voxel grid."""
+    grid = wl.LampGrid([0, 0, 0], [1, 1, 1], 0.25)
+    surface = WettedSurface(grid, probe_radius=0.1, device=device)
+    surface.update(wp.zeros(0, dtype=wp.vec3, device=device), wp.zeros(0, dtype=wp.float32, device=device))
+    d = surface.diagnostics()
+    assert d.fluid.all() and d.counts.shape == (0, 3) and all(c.sum() == 0 for c in d.crossings.values())
+    same = wl.LampGrid.from_grids(
+        corners=[[0, 0], [0, 0], [0, 0]], lengths=[[1, 1], [1, 1], [1, 1]], counts=[[4, 4], [4, 4], [4, 4]]
+    )
+    assert voxel_box(same)[0].tolist() == [4, 4, 4]
+    memo = wl.LampGrid.from_grids(
+        corners=[[0, 0], [0, 0], [0, 0]], lengths=[[1, 1], [1, 1], [1, 1]], counts=[[4, 4], [5, 4], [4, 4]]
+    )
+    with pytest.raises(ValueError, match="grid: the wetted-surface mode needs one voxel grid"):
+        WettedSurface(memo, probe_radius=0.1, device=device)
+
+
+def test_bad_arguments_raise_clear_errors(device):
+    """Bad probe radius, bounds, arrays and budgets name the argument."""
+    grid = wl.LampGrid([0, 0, 0], [2, 2, 2], 0.25)
+    for bad in (-0.1, np.nan, np.inf, "x"):
+        with pytest.raises(ValueError, match="probe_radius"):
+            WettedSurface(grid, probe_radius=bad, device=device)
+    with pytest.raises(ValueError, match="max_rounds"):
+        WettedSurface(grid, probe_radius=0.1, max_rounds=0, device=device)
+    with pytest.raises(ValueError, match="lamps"):
+        WettedSurface(grid, probe_radius=0.1, lamps=["-w"], device=device)
+    tight = wl.LampGrid([0, 0, 0], [2, 2, 2], 0.05)
+    budget = 150_000
+    assert wetted_nbytes(tight, 1.0) > budget > wetted_nbytes(tight, 0.1)
+    WettedSurface(tight, probe_radius=0.1, device=device, max_bytes=budget)
+    with pytest.raises(ValueError, match="budget"):
+        WettedSurface(tight, probe_radius=1.0, device=device, max_bytes=budget)
+    with pytest.raises(ValueError, match="budget"):
+        wl.ShiningLamp(tight, surfaces="all", probe_radius=1.0, device=device, max_bytes=budget)
+    with pytest.raises(ValueError, match=r"probe_radius: surfaces='all' needs"):
+        wl.ShiningLamp(grid, surfaces="all", device=device)
+    with pytest.raises(ValueError, match=r"probe_radius: only with surfaces='all'"):
+        wl.ShiningLamp(grid, probe_radius=0.1, device=device)
+    with pytest.raises(ValueError, match=r"criterion: surfaces='all'"):
+        wl.ShiningLamp(grid, surfaces="all", probe_radius=0.1, criterion="area", device=device)
+    surface = WettedSurface(grid, probe_radius=0.1, device=device)
+    pos = wp.zeros(4, dtype=wp.vec3, device=device)
+    with pytest.raises(TypeError, match="positions"):
+        surface.update(wp.zeros(4, dtype=wp.vec4, device=device), wp.zeros(4, dtype=wp.float32, device=device))
+    with pytest.raises(ValueError, match="radii"):
+        surface.update(pos, wp.zeros(3, dtype=wp.float32, device=device))
+    with pytest.raises(TypeError, match="active"):
+        surface.update(pos, wp.zeros(4, dtype=wp.float32, device=device), wp.zeros(4, dtype=wp.float32, device=device))
+
+
+def test_memory_is_known_before_allocation(device):
+    """wetted_nbytes equals the bytes the surface allocates for its grid-sized buffers."""
+    grid = wl.LampGrid([0, 0, 0], [3.1, 2.2, 1.7], 0.1)
+    for rho, keep in ((0.0, False), (0.35, True)):
+        surface = WettedSurface(grid, probe_radius=rho, keep_owners=keep, device=device)
+        arrays = [v for v in vars(surface).values() if isinstance(v, wp.array)]
+        per_particle = {id(surface.counts), id(surface.hits), id(surface.next_in_bin), id(surface._no_active)}
+        allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)
+        assert wetted_nbytes(grid, rho, keep_owners=keep) == surface.nbytes
+        assert allocated == surface.nbytes
+
+
+def test_connectivity_bound_is_counted_and_balance_holds(device):
+    """A zigzag channel needs several rounds; capped at one round, the solve is counted as cut short, the fluid
+    is a subset of the converged one, and the forces still balance."""
+    # Walls of spheres with staggered gaps: the probe must zigzag in y and x to reach the back chamber.
+    cells = []
+    for wall, gap_x in enumerate((0.0, 4.0, 0.0)):
+        y = 1.0 + 1.5 * wall
+        cells += [(x, y, z) for x in np.arange(-4.0, 4.1, 0.5) for z in np.arange(-2.0, 2.1, 0.5) if x != gap_x]
+    outer = [(x, y, z) for x in (-4.5, 4.5) for y in np.arange(0.5, 5.6, 0.5) for z in np.arange(-2.0, 2.1, 0.5)]
+    centers = np.array(cells + outer)
+    radii = np.full(len(centers), 0.3)
+    full = wetted_solve(centers, radii, probe_radius=0.05, cells_per_diameter=4, device=device)
+    short = wetted_solve(centers, radii, probe_radius=0.05, grid=full.grid, max_rounds=1, device=device)
+    df, ds = full.diagnostics(), short.diagnostics()
+    assert df.rounds >= 2 and not df.nonconverged
+    assert ds.rounds == 1 and ds.nonconverged and ds.nonconverged_total == 1
+    assert np.all(ds.fluid <= df.fluid) and (ds.fluid != df.fluid).any()
+    np.testing.assert_array_equal(ds.counts.sum(axis=0), 0)
+    short.update(*device_arrays(centers - full.grid.origin, radii, device))
+    assert short.diagnostics().nonconverged_total == 2
+
+
+def device_arrays(frame, radii, device):
+    pos = wp.array(np.asarray(frame, dtype=np.float32), dtype=wp.vec3, device=device)
+    return pos, wp.array(np.asarray(radii, dtype=np.float32), dtype=wp.float32, device=device)
+
+
+def test_capture_and_replay_equal_eager(device, rng):
+    """update() recorded with wp.ScopedCapture and replayed equals an eager update, also after the particles
+    move in place (the graph reads the arrays when it runs)."""
+    centers, radii, grid = exact_scene(rng, n=200)
+    moved = centers + rng.normal(scale=0.2, size=centers.shape)
+    pos, rad = device_arrays(centers - grid.origin, radii, device)
+    surface = WettedSurface(grid, probe_radius=0.25, device=device)
+    surface.reserve(len(radii))
+    with wp.ScopedCapture(device=device) as capture:
+        surface.update(pos, rad)
+    for scene in (centers, moved):
+        pos.assign(wp.array(np.asarray(scene - grid.origin, dtype=np.float32), dtype=wp.vec3, device=device))
+        for arr in (surface.fluid, surface.reach, surface.blocked):
+            arr.fill_(0x5A5A5A5A)  # garbage the replay must clear or overwrite
+        surface.counts.fill_(7)
+        wp.capture_launch(capture.graph)
+        replay = surface.diagnostics()
+        eager = wetted_solve(scene, radii, probe_radius=0.25, grid=grid, device=device).diagnostics()
+        np.testing.assert_array_equal(replay.counts, eager.counts)
+        np.testing.assert_array_equal(replay.fluid, eager.fluid)
+        assert replay.rounds == eager.rounds and replay.invalid == 0
+
+
+@pytest.mark.skipif(len(DEVICES) < 2, reason="needs a CUDA device")
+def test_cpu_and_cuda_bitwise_equal(rng):
+    """Maps, per-face owners and counts on CUDA are bitwise those of the CPU."""
+    scene = scene_slot_block((14, 14, 10), width=4, depth=4)
+    for rho in (0.1, 0.45):
+        cpu = wetted_solve(scene.centers, scene.radii, probe_radius=rho, keep_owners=True, device="cpu")
+        dc = cpu.diagnostics()
+        for dev in DEVICES[1:]:
+            dg = wetted_solve(scene.centers, scene.radii, probe_radius=rho, keep_owners=True, device=dev).diagnostics()
+            np.testing.assert_array_equal(dc.fluid, dg.fluid)
+            np.testing.assert_array_equal(dc.counts, dg.counts)
+            for a in range(3):
+                np.testing.assert_array_equal(dc.owners[a], dg.owners[a])

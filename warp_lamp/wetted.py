@@ -1,0 +1,587 @@
+"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issue 10).
+
+The lamp loads only what each lamp sees first (the memo's limitation 1) and its rays reach deep particles
+through the channels between spheres (limitation 2). This mode loads the boundary of a fluid region instead:
+
+- **Allowed** probe centres: voxel centres x with ``|x - c_i| >= r_i + rho`` for every sphere (``rho`` is the
+  probe radius, :attr:`WettedSurface.probe_radius`).
+- **Reachable**: allowed voxels 6-connected to the outside of the box; everything beyond the box is allowed and
+  reachable.
+- **Fluid** (wetted): voxels whose centre lies within ``rho`` of a reachable voxel centre (outside the box
+  included); ``rho = 0``: fluid = reachable. "Within rho" is the offset set of :func:`dilation_table`. A fluid
+  centre is never strictly inside a sphere (triangle inequality), so no solid map is needed.
+- **Crossings**: along every voxel row of the three lamp grids, with virtual fluid beyond both ends of the box,
+  every change from fluid to dry going +a is a +1 on axis a for the low lamp (``"-a"``, pushing +a), every change
+  from dry to fluid a -1 for the high lamp. They alternate along a row, so with both lamps of an axis on, the
+  counts of that axis sum to exactly zero.
+- **Attribution**: a crossing goes to the sphere nearest to the face between the two voxel centres, by
+  ``|p - c_i| - r_i`` in float64, ties to the lowest index. That sphere is never farther than
+  :func:`attribution_bound` (proof in the function's docstring), so a search within that bound cannot miss it.
+
+:class:`WettedSurface` runs the mode on the device, capture-safe; ``ShiningLamp(grid, surfaces="all",
+probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it; ``warp_lamp.reference.wetted`` is the float64
+NumPy/scipy reference.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warp_lamp.frames import pressure_area
+from warp_lamp.grid import LampGrid
+from warp_lamp.kernels import wetted as K
+from warp_lamp.validate import DEFAULT_MAX_BYTES, LAMPS, check_budget, lamp_mask
+
+__all__ = [
+    "WettedDiagnostics",
+    "WettedSurface",
+    "attribution_bound",
+    "check_probe_radius",
+    "dilation_table",
+    "unpack_bits",
+    "voxel_box",
+    "wetted_nbytes",
+]
+
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link.
+BYTES_PER_PARTICLE = 32
+#: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
+MAX_BINS = 1 << 24
+#: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
+DEFAULT_MAX_ROUNDS = 200
+
+
+def check_probe_radius(probe_radius) -> float:
+    """``probe_radius`` as a float, or ValueError: it must be finite and >= 0."""
+    try:
+        rho = float(probe_radius)
+    except (TypeError, ValueError):
+        raise ValueError(f"probe_radius: expected a number [m], got {probe_radius!r}") from None
+    if not (np.isfinite(rho) and rho >= 0.0):
+        raise ValueError(f"probe_radius: must be finite and >= 0, got {probe_radius!r}")
+    return rho
+
+
+def voxel_box(grid: LampGrid) -> tuple[np.ndarray, np.ndarray]:
+    """Voxels per axis (3,) int64 and voxel edge h (3,) float64 of a box-form grid.
+
+    The mode needs the three lamp grids to be the faces of one voxel grid: grid a's rows must be the voxel rows
+    along a. ``LampGrid(lower, upper, cell_size)`` always is; the memo's 18-number form is refused unless its
+    grids share corners, cells and counts exactly.
+    """
+    if not isinstance(grid, LampGrid):
+        raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+    # Axis b is grid (b+2)%3's u axis and grid (b+1)%3's v axis.
+    n = np.array([grid.counts[(b + 2) % 3, 0] for b in range(3)], dtype=np.int64)
+    h = np.array([grid.cell[(b + 2) % 3, 0] for b in range(3)], dtype=np.float64)
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        same = (
+            grid.counts[a, 0] == n[u]
+            and grid.counts[a, 1] == n[v]
+            and grid.cell[a, 0] == h[u]
+            and grid.cell[a, 1] == h[v]
+            and grid.corner[a, 0] == grid.origin[u]
+            and grid.corner[a, 1] == grid.origin[v]
+        )
+        if not same:
+            raise ValueError(
+                f"grid: the wetted-surface mode needs one voxel grid (LampGrid(lower, upper, cell_size)); grid {a} "
+                f"of this memo-form grid has its own corner, cell or counts ({grid.corner[a].tolist()}, "
+                f"{grid.cell[a].tolist()}, {grid.counts[a].tolist()})"
+            )
+    return n, h
+
+
+def dilation_table(h, probe_radius) -> np.ndarray:
+    """The probe's voxel offsets, as a table: ``table[|dy|, |dz|]`` = the largest |dx| of the set, or -1.
+
+    Offset (i, j, k) belongs to the set when, in float64 and in exactly this order,
+    ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2``, each square as ``t * t`` of ``t = n * h``. Float64 rounding is
+    monotone, so the set is closed toward zero on every axis and the table describes it whole. The kernels and
+    the reference both use this table: the dilation radius is decided once, on the host, with no float32 step.
+
+    Args:
+        h: Voxel edge per axis [m], 3 values.
+        probe_radius: rho [m], >= 0.
+
+    Returns:
+        int64 array, shape (wy + 1, wz + 1), wy and wz the half-widths along y and z.
+    """
+    hx, hy, hz = (float(x) for x in h)
+    rho2 = float(probe_radius) * float(probe_radius)
+
+    def inside(i, j, k):
+        return ((i * hx) * (i * hx) + (j * hy) * (j * hy)) + (k * hz) * (k * hz) <= rho2
+
+    def half_width(step):
+        n = 0
+        while inside(*(s * (n + 1) for s in step)):
+            n += 1
+        return n
+
+    wy = half_width((0, 1, 0))
+    wz = half_width((0, 0, 1))
+    wx = half_width((1, 0, 0))
+    table = np.full((wy + 1, wz + 1), -1, dtype=np.int64)
+    for j in range(wy + 1):
+        for k in range(wz + 1):
+            i = -1
+            while i < wx and inside(i + 1, j, k):
+                i += 1
+            table[j, k] = i
+    return table
+
+
+def attribution_bound(h_a: float, probe_radius: float) -> float:
+    """Largest possible distance ``|p - c| - r`` from a crossing point on a lamp axis with voxel edge ``h_a`` to
+    its nearest sphere: ``B = rho + sqrt((rho + h_a/2)^2 + (h_a/2)^2)`` [m] (at most ``2 rho + h_a``).
+
+    Proof. Let a crossing join fluid voxel x_f and dry voxel x_d along axis a, p the face between them
+    (``|x_d - p| = h_a / 2``). Fluid means a reachable point y (a voxel centre, or a lattice point outside the box)
+    with ``|y - x_f| <= rho``, so ``|y - p| <= rho + h_a/2``. Suppose every sphere has ``|p - c_i| - r_i > B``.
+    A staircase lattice path from y to x_d stays in the axis-aligned box spanned by y and x_d; each of its points
+    z has, per coordinate, ``|z - p|`` at most the larger of y's and x_d's, so
+    ``|z - p|^2 <= |y - p|^2 + |x_d - p|^2 <= (rho + h_a/2)^2 + (h_a/2)^2 = (B - rho)^2``. Then
+    ``|z - c_i| > r_i + rho`` for every sphere: every voxel on the path is allowed, so x_d is reachable from y,
+    hence fluid: a contradiction. So some sphere lies within B of p. The virtual fluid beyond the row ends is the
+    case y = x_f. The kernels add a relative margin of 1e-9 for float64 rounding.
+    """
+    half = 0.5 * float(h_a)
+    rho = float(probe_radius)
+    return rho + float(np.hypot(rho + half, half))
+
+
+def unpack_bits(words: np.ndarray, shape) -> np.ndarray:
+    """A bitmap of 32-bit x-row words (row-major z, y, word) as a bool array indexed [x, y, z]."""
+    nx, ny, nz = (int(s) for s in shape)
+    nwx = (nx + 31) // 32
+    w = np.ascontiguousarray(words[: nwx * ny * nz], dtype=np.uint32).reshape(nz, ny, nwx)
+    bits = np.unpackbits(w.view(np.uint8), axis=-1, bitorder="little").reshape(nz, ny, nwx * 32)[..., :nx]
+    return np.ascontiguousarray(bits.astype(bool).transpose(2, 1, 0))
+
+
+def _layout(grid: LampGrid, rho: float) -> dict:
+    n, h = voxel_box(grid)
+    nwx = int((n[0] + 31) // 32)
+    n_words = nwx * int(n[1]) * int(n[2])
+    if n_words >= 2**31 // 8 or int(n.prod()) >= 2**31 - 1:
+        raise ValueError(f"grid: {int(n.prod()):,} voxels are too many for the wetted-surface mode (int32 indices)")
+    table = dilation_table(h, rho)
+    size = n * h
+    bound = np.array([attribution_bound(h[a], rho) for a in range(3)])
+    # float64 rounding of the allowed test and of the distances is far below this margin.
+    bound_search = bound + 1e-9 * (bound + float(np.linalg.norm(size)))
+    edge = max(float(bound.max()), 2.0 * float(h.max()))
+    bins = np.maximum(np.ceil(size / edge), 1).astype(np.int64)
+    while int(bins.prod()) > MAX_BINS:
+        edge *= 1.25
+        bins = np.maximum(np.ceil(size / edge), 1).astype(np.int64)
+    planes = table.shape[1]
+    small = 4 * table.size + 4 * (K.N_DIAG + 4)  # offset table, diagnostics, r_max, loop flags
+    # Segments of about sqrt(n) rows: summary, carry and apply threads then each walk ~2 sqrt(n) words.
+    seg = [0] + [max(4, round(float(np.sqrt(float(n[a]))))) for a in (1, 2)]
+    n_seg = [0] + [-(-int(n[a]) // seg[a]) for a in (1, 2)]
+    columns = [0, nwx * int(n[2]), nwx * int(n[1])]
+    scan = max(columns[1] * n_seg[1], columns[2] * n_seg[2])
+    nbytes = 4 * n_words * (3 + planes) + 4 * int(bins.prod()) + 4 * grid.n_cells + 3 * 4 * scan + small
+    faces = [int(grid.counts[a].prod()) * (int(n[a]) + 1) for a in range(3)]
+    return dict(
+        n=n,
+        h=h,
+        nwx=nwx,
+        n_words=n_words,
+        table=table,
+        bound=bound_search,
+        edge=edge,
+        bins=bins,
+        nbytes=nbytes,
+        faces=faces,
+        seg=seg,
+        n_seg=n_seg,
+        columns=columns,
+        scan=scan,
+    )
+
+
+def wetted_nbytes(grid: LampGrid, probe_radius: float, *, keep_owners: bool = False) -> int:
+    """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: three bitmaps (blocked,
+    reached, fluid) and one per |dz| of the probe's offsets (one bit per voxel each), three words per segment
+    (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few scalars; with
+    ``keep_owners``, one int32 per voxel face of the three axes. Particles add :data:`BYTES_PER_PARTICLE` each."""
+    lay = _layout(grid, check_probe_radius(probe_radius))
+    return lay["nbytes"] + (4 * sum(lay["faces"]) if keep_owners else 0)
+
+
+@dataclass
+class WettedDiagnostics:
+    """What the last update found; built on demand from device arrays, outside the hot path.
+
+    Attributes:
+        counts: Signed crossing counts per particle and axis, shape (N, 3), int64.
+        hits: Crossings attributed to each particle, both lamps and all axes, shape (N,), int64.
+        surface: Particles that took at least one crossing, shape (N,), bool.
+        fluid: Wetted voxels, shape (nx, ny, nz), bool (indexed [x, y, z], centres at lower + (index + 1/2) h).
+        allowed: Voxels where the probe centre may stand, shape (nx, ny, nz), bool.
+        reachable: Allowed voxels the connectivity solve joined to the outside, shape (nx, ny, nz), bool.
+        crossings: Per lamp grid a (0, 1, 2), fluid-to-dry crossings on each ray, shape (n_u, n_v) like the lamp's
+            owner maps (the dry-to-fluid crossings are as many).
+        loaded: Per lamp name, crossings it loaded (0 for a lamp that is off).
+        invalid: Particles skipped as invalid (non-finite position or radius, radius <= 0).
+        outside: Particles whose sphere pokes out of the box.
+        tight: Particles whose sphere inflated by rho reaches past the first layer of voxel centres outside the
+            box, which the mode takes as allowed and reachable: the box is too tight for the probe there, and
+            the fluid there may differ from that of a larger box (give the box a margin of rho + one cell).
+        unattributed: Crossings with no sphere found (never expected; each breaks the balance by one count).
+        rounds: Connectivity rounds of the last update.
+        nonconverged: Whether the last connectivity solve stopped at ``max_rounds`` (reachable is then too small).
+        nonconverged_total: Connectivity solves cut short since construction.
+        owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
+            indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
+            was loaded, -1 where none was found; else None.
+        force: Resultant force [N], shape (3,), when a pressure was given.
+    """
+
+    counts: np.ndarray
+    hits: np.ndarray
+    surface: np.ndarray
+    fluid: np.ndarray
+    allowed: np.ndarray
+    reachable: np.ndarray
+    crossings: dict
+    loaded: dict
+    invalid: int
+    outside: int
+    tight: int
+    unattributed: int
+    rounds: int
+    nonconverged: bool
+    nonconverged_total: int
+    owners: dict | None = None
+    force: np.ndarray | None = None
+
+
+class WettedSurface:
+    """The wetted-surface mode on the device: every crossing of the probe-closed fluid boundary is loaded.
+
+    ``update`` writes signed crossing counts per particle into :attr:`counts` (3 int32 per particle, laid out like
+    ``ShiningLamp.counts``); the force on particle i along axis a is ``P_a A_a counts[3 i + a]``. Nothing in
+    ``update`` allocates (after :meth:`reserve` or a first update at that particle count) or reads device data on
+    the host, so it can be recorded with ``wp.ScopedCapture``; the connectivity solve is a ``wp.capture_while``
+    loop (one host read of its flag per round when run eagerly on CUDA, none in a graph). Invalid particles are
+    skipped and counted, never raised.
+
+    Choosing ``probe_radius`` (rho): the probe cannot pass a pore window narrower than itself, and the fluid's
+    boundary bridges gaps between surface particles narrower than about 2 rho. Dense packings keep it out of their
+    pores from rho of about a quarter to a third of the mean diameter (measured: a jittered cubic lattice is
+    sealed from 0.33 d, the random SphereTest packing has no wetted particle deeper than a diameter from 0.3 d).
+    For a membrane that follows the surface particles, take that up to one mean radius (the slot block's walls and
+    floor then get 0.95 of P A). For mud, which fills a trough several diameters wide but not the pores, one to
+    two mean radii: a larger probe rounds concave corners to radius rho, and as rho grows the loaded surface
+    becomes the convex hull. rho -> 0 lets the fluid into every connected pore. Give the box a margin of rho
+    plus a cell beyond the particles (``diagnostics().tight`` counts those closer).
+    """
+
+    def __init__(
+        self,
+        grid: LampGrid,
+        *,
+        probe_radius: float,
+        lamps="all",
+        max_rounds: int = DEFAULT_MAX_ROUNDS,
+        keep_owners: bool = False,
+        device=None,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ):
+        """Allocate the voxel bitmaps of ``grid`` on ``device``.
+
+        Args:
+            grid: Box-form lamp grid; the voxels are its cells (see :func:`voxel_box`). Its box should reach
+                rho + one cell past every particle, so that the probe can come in from outside on every side;
+                particles closer to its faces are counted in ``diagnostics().tight``.
+            probe_radius: rho [m], >= 0.
+            lamps: "all", or names from :data:`warp_lamp.LAMPS`; a lamp that is off loads none of its crossings.
+            max_rounds: Bound on connectivity rounds (each one sweep along x, y and z); a solve that needs more stops
+                there, is counted in :meth:`diagnostics`, and under-fills the fluid (balance still holds).
+            keep_owners: Also record the sphere each crossing went to, per voxel face (4 bytes per voxel and
+                axis; for tests and pictures, :attr:`WettedDiagnostics.owners`).
+            device: Warp device; the current default when None.
+            max_bytes: Budget for the voxel buffers [bytes] (:func:`wetted_nbytes`); over it, ValueError before
+                anything is allocated.
+        """
+        self.probe_radius = check_probe_radius(probe_radius)
+        if isinstance(max_rounds, bool) or not isinstance(max_rounds, (int, np.integer)) or max_rounds < 1:
+            raise ValueError(f"max_rounds: expected an int >= 1, got {max_rounds!r}")
+        self.grid = grid
+        self.lamp_mask = lamp_mask(lamps)
+        self.max_rounds = int(max_rounds)
+        self.device = wp.get_device(device)
+        lay = _layout(grid, self.probe_radius)
+        self.nbytes = lay["nbytes"] + (4 * sum(lay["faces"]) if keep_owners else 0)
+        self._faces = lay["faces"]
+        self._seg = lay["seg"]
+        self._n_seg = lay["n_seg"]
+        nwx, ny, nz = lay["nwx"], int(lay["n"][1]), int(lay["n"][2])
+        self._face_words = [ny * nz * (nwx + 1), nwx * (ny + 1) * nz, nwx * ny * (nz + 1)]
+        self._slices = None  # threads per sphere in rasterize; None: chosen per update from N
+        total = sum(self._face_words)
+        # Bits per crossing thread. On CUDA, one nearest-sphere search per thread while that stays under ~8M
+        # threads (latency rules small grids); large grids, whose crossings are spread over millions of threads
+        # anyway, take a word per thread. The CPU runs a launch on one thread: a word per thread there.
+        self._bits = 32
+        if self.device.is_cuda:
+            self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
+        self._columns = lay["columns"]
+        check_budget(
+            self.nbytes,
+            max_bytes,
+            f"grid: the wetted-surface buffers need {self.nbytes:,} bytes",
+            "raise max_bytes, use larger cells or a smaller probe_radius",
+        )
+        self.shape = tuple(int(x) for x in lay["n"])
+        self.h = lay["h"]
+        self.table = lay["table"]
+        box = K.WetBox()
+        box.n = wp.vec3i(*self.shape)
+        box.nwx = lay["nwx"]
+        box.n_words = lay["n_words"]
+        box.h = wp.vec3d(*self.h)
+        box.rho = self.probe_radius
+        box.bound = wp.vec3d(*lay["bound"])
+        box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
+        box.bin_edge = lay["edge"]
+        box.wy = self.table.shape[0] - 1
+        box.wz = self.table.shape[1] - 1
+        box.lamp_mask = self.lamp_mask
+        box.offset = wp.vec3i(*(int(x) for x in grid.offsets))
+        box.face_offset = wp.vec3i(0, self._faces[0], self._faces[0] + self._faces[1])
+        self._box = box
+        d = self.device
+        nw = lay["n_words"]
+        self.blocked = wp.zeros(nw, dtype=wp.uint32, device=d)
+        self.reach = wp.zeros(nw, dtype=wp.uint32, device=d)
+        self.fluid = wp.zeros(nw, dtype=wp.uint32, device=d)
+        self.seg_pass = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
+        self.seg_up = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
+        self.seg_down = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
+        self.planes = wp.zeros(nw * self.table.shape[1], dtype=wp.uint32, device=d)
+        self.heads = wp.full(int(lay["bins"].prod()), -1, dtype=wp.int32, device=d)
+        self.rays = wp.zeros(grid.n_cells, dtype=wp.int32, device=d)
+        self.owners = wp.full(sum(self._faces) if keep_owners else 0, -2, dtype=wp.int32, device=d)
+        self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
+        self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
+        self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
+        self.cond = wp.zeros(1, dtype=wp.int32, device=d)
+        self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
+        self.nonconverged_total = wp.zeros(1, dtype=wp.int32, device=d)
+        self.counts = wp.zeros(0, dtype=wp.int64, device=d)
+        self.hits = wp.zeros(0, dtype=wp.int32, device=d)
+        self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
+        self._no_active = wp.empty(0, dtype=wp.int32, device=d)
+        self.n = 0
+
+    def _auto_slices(self, n: int) -> int:
+        if not self.device.is_cuda:
+            return 1
+        return int(min(8, max(1, 2 ** int(np.log2(max(1, (1 << 16) // max(n, 1)))))))
+
+    def reserve(self, n: int) -> None:
+        """Make room for ``n`` particles now, so that a later captured update need not allocate."""
+        if n > self.hits.shape[0]:
+            if self.device.is_cuda and self.device.is_capturing:
+                raise RuntimeError(
+                    f"positions: {n} particles exceed the {self.hits.shape[0]} reserved; call "
+                    "WettedSurface.reserve(n) or one eager update before wp.ScopedCapture"
+                )
+            self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
+            self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
+
+    def _check_array(self, name, arr, dtype, n=None):
+        if not isinstance(arr, wp.array):
+            raise TypeError(f"{name}: expected a warp array of {dtype.__name__}, got {type(arr).__name__}")
+        if arr.dtype != dtype:
+            raise TypeError(f"{name}: expected dtype {dtype.__name__}, got {getattr(arr.dtype, '__name__', arr.dtype)}")
+        if arr.ndim != 1:
+            raise ValueError(f"{name}: expected a 1-D array, got shape {arr.shape}")
+        if arr.device != self.device:
+            raise ValueError(f"{name}: on device {arr.device}, the wetted surface is on {self.device}")
+        if n is not None and arr.shape[0] < n:
+            raise ValueError(f"{name}: has {arr.shape[0]} entries, need {n}")
+        if not arr.is_contiguous:
+            raise ValueError(f"{name}: must be contiguous")
+
+    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None) -> None:
+        """Recompute the fluid region, its crossings, and each particle's signed crossing counts.
+
+        Args:
+            positions: Particle centres in frame coordinates (minus ``grid.origin``) [m], warp array of vec3
+                (float32), shape (N,), on the surface's device.
+            radii: Particle radii [m], warp array of float32, shape (N,).
+            active: Optional warp array of int32, shape (N,): 0 makes a particle absent (no solid, no force).
+        """
+        self._update(positions, radii, active)
+
+    #: Stages of an update, in order; ``_update(..., stop=s)`` runs the stages up to and including s (benchmarks).
+    STAGES = ("rasterize", "connect", "dilate", "cross")
+
+    def _update(self, positions, radii, active, stop: str = "cross") -> None:
+        last = self.STAGES.index(stop)
+        self._check_array("positions", positions, wp.vec3)
+        n = positions.shape[0]
+        self._check_array("radii", radii, wp.float32, n)
+        if active is None:
+            active = self._no_active
+        else:
+            self._check_array("active", active, wp.int32, n)
+        self.reserve(n)
+        self.n = n
+        d = self.device
+        box = self._box
+        ny, nz = self.shape[1], self.shape[2]
+        nw = box.n_words
+        wp.launch(
+            K.wet_clear,
+            dim=max(n, K.N_DIAG, 1),
+            inputs=[n],
+            outputs=[self.counts, self.hits, self.diag, self.rmax, self.cond],
+            device=d,
+        )
+        self.blocked.zero_()
+        self.reach.zero_()
+        self.rays.zero_()
+        self.heads.fill_(-1)
+        if self.owners.shape[0] > 0:
+            self.owners.fill_(-2)
+        if n > 0:
+            # Enough threads to fill a GPU: a small body gets up to 8 per sphere, one per few z layers.
+            slices = self._slices or self._auto_slices(n)
+            wp.launch(
+                K.wet_rasterize,
+                dim=n * slices,
+                inputs=[positions, radii, active, box, slices],
+                outputs=[self.blocked, self.heads, self.next_in_bin, self.rmax, self.diag],
+                device=d,
+            )
+
+        def round_body():
+            wp.launch(K.wet_sweep_x, dim=ny * nz, inputs=[box, self.blocked, self.cond], outputs=[self.reach], device=d)
+            for axis in (1, 2):
+                seg, n_seg, cols = self._seg[axis], self._n_seg[axis], self._columns[axis]
+                segs = [self.seg_pass, self.seg_up, self.seg_down]
+                wp.launch(
+                    K.wet_scan_summary,
+                    dim=cols * n_seg,
+                    inputs=[box, axis, seg, n_seg, self.blocked, self.reach, self.cond],
+                    outputs=segs,
+                    device=d,
+                )
+                wp.launch(
+                    K.wet_scan_carry,
+                    dim=cols,
+                    inputs=[box, n_seg, self.seg_pass, self.cond],
+                    outputs=segs[1:],
+                    device=d,
+                )
+                wp.launch(
+                    K.wet_scan_apply,
+                    dim=cols * n_seg,
+                    inputs=[box, axis, seg, n_seg, self.blocked, self.seg_up, self.seg_down, self.cond],
+                    outputs=[self.reach],
+                    device=d,
+                )
+            wp.launch(
+                K.wet_frontier,
+                dim=nw,
+                inputs=[box, self.blocked, self.reach, self.cond],
+                outputs=[self.frontier],
+                device=d,
+            )
+            wp.launch(
+                K.wet_round_end,
+                dim=1,
+                inputs=[self.max_rounds],
+                outputs=[self.frontier, self.cond, self.diag, self.nonconverged_total],
+                device=d,
+            )
+
+        if last < 1:
+            return
+        if d.is_cuda and d.is_capturing and not wp.is_conditional_graph_supported():
+            # No conditional graph nodes: record every round; rounds after convergence return at once.
+            for _ in range(self.max_rounds):
+                round_body()
+        else:
+            wp.capture_while(self.cond, round_body)
+        if last < 2:
+            return
+        wp.launch(K.wet_dilate_y, dim=nw, inputs=[box, self.reach, self._table], outputs=[self.planes], device=d)
+        wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, self.planes], outputs=[self.fluid], device=d)
+        if last < 3:
+            return
+        per_word = 32 // self._bits
+        first = wp.vec3i(0, self._face_words[0] * per_word, (self._face_words[0] + self._face_words[1]) * per_word)
+        wp.launch(
+            K.wet_cross,
+            dim=sum(self._face_words) * per_word,
+            inputs=[positions, radii, box, first, self._bits, self.fluid, self.heads, self.next_in_bin, self.rmax],
+            outputs=[self.counts, self.hits, self.rays, self.diag, self.owners],
+            device=d,
+        )
+
+    def counts_numpy(self) -> np.ndarray:
+        """Signed crossing counts of the last update, shape (N, 3), int64 (copies to the host)."""
+        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+
+    def diagnostics(self, pressure=None) -> WettedDiagnostics:
+        """Voxel maps, per-ray crossings, skip counters and the connectivity outcome (host copies).
+
+        Args:
+            pressure: Pressure [Pa] (a number or three), for the resultant force.
+        """
+        g = self.grid
+        counts = self.counts_numpy()
+        hits = self.hits.numpy()[: self.n].astype(np.int64)
+        diag = self.diag.numpy()
+        rays = self.rays.numpy()
+        crossings, loaded = {}, {}
+        for a in range(3):
+            nu, nv = (int(x) for x in g.counts[a])
+            o = int(g.offsets[a])
+            crossings[a] = rays[o : o + nu * nv].reshape(nv, nu).T.copy()
+            total = int(crossings[a].sum())
+            for side in range(2):
+                name = LAMPS[2 * a + side]
+                loaded[name] = total if (self.lamp_mask >> (2 * a + side)) & 1 else 0
+        out = WettedDiagnostics(
+            counts=counts,
+            hits=hits,
+            surface=hits > 0,
+            fluid=unpack_bits(self.fluid.numpy(), self.shape),
+            allowed=~unpack_bits(self.blocked.numpy(), self.shape),
+            reachable=unpack_bits(self.reach.numpy(), self.shape),
+            crossings=crossings,
+            loaded=loaded,
+            invalid=int(diag[K.DIAG_INVALID]),
+            outside=int(diag[K.DIAG_OUTSIDE]),
+            tight=int(diag[K.DIAG_TIGHT]),
+            unattributed=int(diag[K.DIAG_UNATTRIBUTED]),
+            rounds=int(diag[K.DIAG_ROUNDS]),
+            nonconverged=bool(diag[K.DIAG_NONCONVERGED]),
+            nonconverged_total=int(self.nonconverged_total.numpy()[0]),
+        )
+        if self.owners.shape[0] > 0:
+            own = self.owners.numpy()
+            out.owners = {}
+            start = 0
+            for a in range(3):
+                nu, nv = (int(x) for x in g.counts[a])
+                block = own[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
+                out.owners[a] = block.transpose(1, 0, 2).copy()
+                start += self._faces[a]
+        if pressure is not None:
+            out.force = (counts * pressure_area(pressure, g)).sum(axis=0)
+        return out
