@@ -1,4 +1,4 @@
-"""Overlap relaxation for dense random sphere packings inside a spherical container."""
+"""Overlap relaxation for dense random sphere packings inside a container: a ball, a box or a cylinder."""
 
 import warp as wp
 
@@ -20,7 +20,8 @@ def packing_push(
     worst: wp.array[wp.float32],
 ):
     """Jacobi step: each particle moves by half of every overlap it has, and back inside the container: the ball
-    of ``body_radius`` about the origin when it is > 0, else the box [box_lower, box_upper]."""
+    of ``body_radius`` about the origin when it is > 0; when it is < 0, the cylinder of radius ``-body_radius``
+    about the z axis between ``box_lower[2]`` and ``box_upper[2]``; when it is 0, the box [box_lower, box_upper]."""
     i = wp.tid()
     xi = x[i]
     ri = radii[i] * scale
@@ -47,6 +48,21 @@ def packing_push(
         if excess > 0.0 and dc > 0.0:
             d -= excess * xi / dc
             wp.atomic_max(worst, 0, excess / ri)
+    elif body_radius < 0.0:
+        rho = wp.sqrt(xi[0] * xi[0] + xi[1] * xi[1])
+        excess = rho + ri + body_radius
+        if excess > 0.0 and rho > 0.0:
+            d[0] = d[0] - excess * xi[0] / rho
+            d[1] = d[1] - excess * xi[1] / rho
+            wp.atomic_max(worst, 0, excess / ri)
+        low = box_lower[2] + ri - xi[2]
+        high = xi[2] + ri - box_upper[2]
+        if low > 0.0:
+            d[2] = d[2] + low
+            wp.atomic_max(worst, 0, low / ri)
+        elif high > 0.0:
+            d[2] = d[2] - high
+            wp.atomic_max(worst, 0, high / ri)
     else:
         for a in range(3):
             low = box_lower[a] + ri - xi[a]
