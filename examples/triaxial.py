@@ -644,8 +644,10 @@ def plot(test: TriaxialTest, path: str) -> None:
     s = test.summary()
     fig.suptitle(
         f"Drained triaxial, {test.n} particles, sigma_3 = {test.sigma3 / 1e3:g} kPa, lamp {test.cells_per_diameter:g} "
-        f"cells/d, I = {test.inertial_number:g}: peak q/sigma_3 = {s['peak_q_over_sigma3']:.2f}, "
-        f"phi_peak = {s['peak_friction_angle_deg']:.1f} deg"
+        f"cells/d, I = {test.inertial_number:g}\npeak q/sigma_3 = {s['peak_q_over_sigma3']:.2f} (platens), "
+        f"phi_peak = {s['peak_friction_angle_deg']:.1f} deg (platens), "
+        f"{s['sphere_friction_angle_at_peak_deg']:.1f} deg (core)",
+        fontsize=10,
     )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
