@@ -133,7 +133,7 @@ def main():
     ap.add_argument("--rho-diameters", type=float, nargs="*", default=[0.5], help="rho in mean diameters")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     wp.init()
     device = wp.get_device(args.device)
     rows = []

@@ -96,7 +96,7 @@ def specimen():
     )
     print("| --- | --- | --- | --- | --- | --- |")
     t0 = time.perf_counter()
-    lamp = wl.lamp_solve(scene.centers, scene.radii, cells_per_diameter=4, device="cpu")
+    lamp = wl.lamp_update(scene.centers, scene.radii, cells_per_diameter=4, device="cpu")
     f1 = lamp.counts_numpy() * pressure_area(P, lamp.grid)
     t1 = time.perf_counter()
     first = lamp.diagnostics().surface
@@ -120,7 +120,7 @@ def specimen():
 
 
 if __name__ == "__main__":
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     wp.init()
     cavity()
     tunnel()

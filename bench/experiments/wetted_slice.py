@@ -36,13 +36,13 @@ def main():
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     scene = scene_slot_block()
     rho = float(scene.radii.mean())
     grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=args.cells, margin=2.0 * rho + rho)
     surf = wetted_solve(scene.centers, scene.radii, probe_radius=rho, grid=grid, keep_owners=True, device="cpu")
     d = surf.diagnostics()
-    lamp = wl.lamp_solve(scene.centers, scene.radii, grid=grid, device="cpu").diagnostics()
+    lamp = wl.lamp_update(scene.centers, scene.radii, grid=grid, device="cpu").diagnostics()
     n, h, o = np.array(surf.shape), surf.h, grid.origin
     ix = int(n[0] // 2)
     x0 = o[0] + (ix + 0.5) * h[0]

@@ -61,7 +61,7 @@ def main():
     ap.add_argument("--no-reference", action="store_true", help="kernels only (fast)")
     ap.add_argument("--cells", type=float, default=4.0)
     args = ap.parse_args()
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     scene = scene_slot_block()
     rmean = float(scene.radii.mean())
     print(f"# {scene.name}: {scene.n:,} particles, mean radius {rmean:.4f}, {args.cells:g} cells per diameter\n")
@@ -70,7 +70,7 @@ def main():
     for cpd in (2, 4, 8):
         f = wl.lamp_forces(scene.centers, scene.radii, P, cells_per_diameter=cpd, device="cpu")
         loaded = int(np.any(f != 0, axis=1).sum())
-        lamp = wl.lamp_solve(scene.centers, scene.radii, cells_per_diameter=cpd, device="cpu")
+        lamp = wl.lamp_update(scene.centers, scene.radii, cells_per_diameter=cpd, device="cpu")
         print(
             row(
                 f'"first", {cpd} cells/d',
