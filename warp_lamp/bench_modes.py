@@ -673,7 +673,7 @@ def plot_area(ax, result: dict) -> None:
             ax.loglog(err, t, "s--" if name.startswith("area") else "o-", label=f"{dev}, {name}")
             for r, x, y in zip(pts, err, t, strict=True):
                 ax.annotate(
-                    f"{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
+                    f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
                 )
         ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres): force error", fontsize=9)
     ax.set_xlabel("per-particle force RMS / (P pi rbar^2) [%], against exact visible areas")
