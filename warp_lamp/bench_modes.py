@@ -287,7 +287,7 @@ def section_area(
         area_cpd: Resolutions of the area criterion.
         estimators: ``(resolver, depth_slots)`` pairs of the area criterion (8 x 8 sub-points).
         large: Lattice sizes per axis (the 1M box: 100) whose update at cell 0.25 is timed for criterion 1 and
-            for the area criterion's defaults (sub-points, D = 3) at cell 0.25 and at 3 cells per diameter.
+            for the area criterion with the lamp's defaults at cell 0.25 and at 3 cells per diameter.
         bar: Progress bar, one step per row.
 
     Returns:
@@ -334,11 +334,11 @@ def section_area(
             grid = lattice_grid(scene, cell)
             lamp = ShiningLamp(grid, criterion=criterion, device=device)
             t = time_update(lamp, scene, device, repeats=min(repeats, 20), moving=False)
-            del lamp
             row = {"device": device.alias, "scene": scene.name, "n": scene.n, "criterion": criterion}
             row.update(cell=cell, cells_per_diameter=d / cell, cells=grid.n_cells, **t)
             if criterion == "area":
-                row.update(resolver="subpoints", depth_slots=3, subpoints=8)
+                row.update(resolver=lamp.resolver, depth_slots=lamp.depth_slots, subpoints=lamp.subpoints)
+            del lamp
             big.append(row)
             _step(bar, f"{device.alias} area {scene.n:,} criterion {criterion} cell {cell:.3g}")
         for r in big:
@@ -592,12 +592,12 @@ def format_modes(result: dict) -> str:
         header = ["device", "estimator", "cells/d", "RMS", "worst", "update ms", "x C1 at d/4"]
         lines += markdown_table([*header, "overflow / one-sided"], rows)
         if sec.get("large"):
-            lines += ["", "Area criterion on the lattice box (defaults: sub-points 8 x 8, D = 3):", ""]
+            lines += ["", "The area criterion's defaults on the lattice box, against criterion 1 at cell 0.25:", ""]
             rows = [
                 [
                     r["device"],
                     f"{r['n']:,}",
-                    "criterion 1" if r["criterion"] == 1 else "area",
+                    _estimator_name(r),
                     f"{r['cell']:.4g} ({r['cells_per_diameter']:.2f}/d)",
                     _ms(r["update_s"]),
                     _x(r["ratio"]),
