@@ -258,6 +258,9 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
                 )
                 bar.step(f"{device.alias} sweep c{criterion} d/{k}")
     bar.close()
+    from warp_lamp.bench_modes import bench_modes  # it imports this module
+
+    result.update(bench_modes(devices, quick=quick, progress=progress, repeats=repeats))
     return result
 
 
@@ -351,11 +354,15 @@ def format_tables(result: dict) -> str:
             for s in result["sweep"]
         ],
     )
+    from warp_lamp.bench_modes import format_modes
+
+    lines.append(format_modes(result))
     return "\n".join(lines)
 
 
 def plot(result: dict, path: str) -> None:
-    """Time per update against E_area, one curve per device and criterion (needs the `plot` extra)."""
+    """Time per update against E_area, one curve per device and criterion, and beside it the area section's
+    curves (update time against the specimen's force error), when present (needs the `plot` extra)."""
     try:
         import matplotlib
     except ImportError as e:
@@ -363,7 +370,9 @@ def plot(result: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6.4, 5.2))
+    area = bool(result.get("area"))
+    fig, axes = plt.subplots(1, 1 + area, figsize=(6.4 * (1 + area), 5.2), squeeze=False)
+    ax = axes[0, 0]
     keys = sorted({(s["device"], s["criterion"]) for s in result["sweep"]})
     for dev, crit in keys:
         pts = [s for s in result["sweep"] if s["device"] == dev and s["criterion"] == crit]
@@ -377,6 +386,10 @@ def plot(result: dict, path: str) -> None:
     ax.set_ylabel("full update [ms]")
     ax.set_title("Shining lamp: time against error")
     ax.grid(True, which="both", alpha=0.3)
-    fig.legend(fontsize=7, loc="lower center", ncol=2, frameon=False)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="lower center", ncol=2, frameon=False)
+    if area:
+        from warp_lamp.bench_modes import plot_area
+
+        plot_area(axes[0, 1], result)
     fig.tight_layout(rect=(0, 0.1, 1, 1))
     fig.savefig(path, dpi=120)
