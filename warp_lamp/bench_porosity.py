@@ -136,7 +136,7 @@ def _time_voxel_device(pos, rad, args, device) -> dict:
     sub = tuple(x * s for x in shape)
     h = (upper - lower) / np.asarray(shape)
     bits = porosity_mark_union("voxel", pos, rad, h / s, sub, device)
-    counts = wp.zeros(shape, dtype=wp.int32, device=device)
+    counts = wp.zeros(shape, dtype=wp.int64, device=device)
 
     def run():
         bits.zero_()

@@ -10,7 +10,17 @@ import warp as wp
 
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import lamp as lamp_kernels
-from warp_lamp.validate import check_particles, check_pressure
+from warp_lamp.validate import (
+    check_device_match,
+    check_force_range,
+    check_integer,
+    check_mask,
+    check_particles,
+    check_positions,
+    check_positive,
+    check_pressure,
+    check_vec3,
+)
 
 __all__ = [
     "LAMPS",
@@ -68,9 +78,17 @@ def pressure_area(pressure, grid: LampGrid) -> np.ndarray:
     """Force per lit cell on each axis [N], shape (3,): P_a times the cell area of grid a.
 
     Rounded to 26 significant bits (relative change below 1.5e-8), so that P_a A_a times any cell count is
-    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation.
+    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation. A
+    simulator that needs that exact float64 sum from a :class:`ShiningLamp` (whose forces are float32) computes
+    ``lamp.counts_numpy() * pressure_area(P, lamp.grid)``.
+
+    Raises:
+        ValueError: when P_a A_a leaves the range where this is exact (above about 1e291 N, or nonzero below the
+            smallest normal float64), naming ``pressure``.
     """
-    return _round26(check_pressure(pressure) * grid.cell_area)
+    p = check_pressure(pressure)
+    check_force_range(p, grid.cell_area, grid.counts[:, 0] * grid.counts[:, 1])
+    return _round26(p * grid.cell_area)
 
 
 def _decode_depth(keys: np.ndarray) -> np.ndarray:
@@ -161,13 +179,21 @@ class ShiningLamp:
     ``update`` finds which particle each lamp cell lights and stores signed cell counts per particle. It starts
     from the last update's owners, re-evaluated at the new positions, so that a slowly moving body costs little
     more than reading its footprint; the result does not depend on that history (an atomic minimum).
-    ``add_forces`` adds P_a A_a count into a simulator's force array; ``apply`` does both. None of them
+    ``add_forces`` adds P_a A_a count into a simulator's force array; ``apply`` does both. ``update`` takes world
+    positions (the lamp subtracts ``float32(grid.origin)``) unless told ``in_frame=True``. None of them
     allocates (after the first update at a given particle count, or after :meth:`reserve`), synchronises or
     reads device data on the host, so they can be recorded in a CUDA graph with ``wp.ScopedCapture``. Invalid
     particles (non-finite, radius <= 0) are skipped and counted in :meth:`diagnostics`, never raised.
 
-    With all six lamps on, the counts of each axis sum to exactly zero, so the forces balance exactly. With a
-    subset (``lamps``), the balance holds only on axes whose two lamps are both on.
+    With all six lamps on, the counts of each axis sum to exactly zero. The float32 forces that ``add_forces``
+    writes are each the correctly rounded value of an exact float64 force, so they balance to float32 rounding
+    (about 3e-10 of the largest force, relative), not exactly; the exact float64 forces, whose sum is exactly zero,
+    are ``lamp.counts_numpy() * warp_lamp.lamp.pressure_area(P, lamp.grid)`` (as :func:`lamp_forces` returns them).
+    With a subset of lamps (``lamps``), the balance holds only on axes whose two lamps are both on.
+
+    ``add_forces`` before any ``update`` raises RuntimeError naming ``update``: there are no counts yet. A captured
+    graph cannot record that state, because capture needs an eager update (or :meth:`reserve` and an update
+    earlier in the same capture) first.
     """
 
     def __init__(
@@ -230,7 +256,12 @@ class ShiningLamp:
 
     def reserve(self, n: int) -> None:
         """Make room for ``n`` particles now, so that a later captured update need not allocate; this also fixes
-        the depth pass's ``split`` for them."""
+        the depth pass's ``split`` for them.
+
+        Args:
+            n: Particle count, an integer >= 0.
+        """
+        n = check_integer("n", n)
         if 3 * n > self.counts.shape[0]:
             if self.device.is_capturing:
                 raise RuntimeError(
@@ -366,9 +397,16 @@ class ShiningLamp:
 
         Args:
             forces: Simulator force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
-            pressure: Fluid pressure [Pa]: a number, three numbers (Px, Py, Pz), or a warp float32 array of 1 or 3
-                values on the device (read when the kernel runs, so a captured graph sees its current value).
+            pressure: Fluid pressure [Pa]: a plain number, three numbers (Px, Py, Pz), or a warp float32 array of 1
+                or 3 values on the device (read when the kernel runs, so a captured graph sees its current value;
+                a device value is not range-checked, since reading it would synchronise).
+
+        Raises:
+            RuntimeError: before any ``update`` (eager, or earlier in the same capture).
+            ValueError: a constant pressure whose P A count leaves float32's range, or the exact range.
         """
+        if self._inputs is None:
+            raise RuntimeError("add_forces: no counts yet; call ShiningLamp.update (or apply) first")
         self._check_array("forces", forces, wp.vec3, self.n)
         const = wp.vec3d(0.0, 0.0, 0.0)
         arr = self._no_pressure
@@ -378,7 +416,9 @@ class ShiningLamp:
                 raise ValueError(f"pressure: a device array must hold 1 or 3 values, got {pressure.shape[0]}")
             arr = pressure
         else:
-            const = wp.vec3d(*check_pressure(pressure))
+            p = check_pressure(pressure)
+            check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1], float32=True)
+            const = wp.vec3d(*p)
         if self.n > 0:
             wp.launch(
                 lamp_kernels.lamp_add_forces,
@@ -401,10 +441,17 @@ class ShiningLamp:
         """Surface flags, owner and depth maps, lit cells, skip counters, and resultants (host copies).
 
         Args:
-            positions: Particle centres [m], shape (N, 3) (numpy or warp), for the resultant moment.
+            positions: Particle centres [m], shape (N, 3) with N of the last update (numpy, or warp on any device),
+                world coordinates, for the resultant moment.
             pressure: Pressure [Pa] (a number or three), for the resultant force and moment.
             moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
         """
+        if positions is not None:
+            positions = check_positions("positions", positions, self.n)
+        if pressure is not None:
+            pressure = check_pressure(pressure)
+        if moment_origin is not None:
+            moment_origin = check_vec3("moment_origin", moment_origin)
         diag = self.diag.numpy()
         counts = self.counts_numpy()
         owners, depths = lamp_owner_maps(self.keys.numpy(), self.grid)
@@ -427,8 +474,7 @@ class ShiningLamp:
             f = counts * pressure_area(pressure, self.grid)
             out.force = f.sum(axis=0)
             if positions is not None:
-                x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
-                x = np.asarray(x, dtype=np.float64)[: self.n]
+                x = positions
                 if moment_origin is None:
                     moment_origin = x[surface].mean(axis=0) if surface.any() else np.zeros(3)
                 out.moment_origin = np.asarray(moment_origin, dtype=np.float64)
@@ -452,30 +498,31 @@ def lamp_update(
     The positions are taken relative to ``grid.origin`` in float64 before the cast to float32, so a body far from
     the origin gets the same result as near it; pass ``centers`` to ``diagnostics`` for the moment.
 
+    Warp arrays are accepted on any device: they are read to the host once (to validate them and subtract the
+    origin in float64), and the update then runs on the device where they live, unless ``device`` names another,
+    which is refused.
+
     Args:
-        centers: Particle centres [m], shape (N, 3).
-        radii: Particle radii [m], shape (N,), or one number for all.
+        centers: Particle centres [m], shape (N, 3): NumPy or a sequence (float64 welcome), or a warp ``vec3`` /
+            ``vec3d`` array on any device.
+        radii: Particle radii [m], shape (N,), or one number for all (NumPy, or a warp array).
         grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter`` (a placeholder
             one-cell grid when there are no particles).
         cells_per_diameter: Cells per mean particle diameter for the default grid.
         criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk.
         lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
-        active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
-        device: Warp device; the current default when None.
+        active: Optional mask, shape (N,), booleans or numbers (nonzero: active): inactive particles are
+            invisible (no shadow, no force).
+        device: Warp device; by default where warp-array inputs live, else the current default.
     """
+    device = check_device_match(device, centers=centers, radii=radii, active=active)
     c, r = check_particles(centers, radii)
     criterion = _check_criterion(criterion)
     lamps = lamp_names(lamps)
+    cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
     n = c.shape[0]
-    mask = None
-    if active is not None:
-        mask = np.asarray(active)
-        if mask.shape != (n,):
-            raise ValueError(f"active: expected shape ({n},), got {mask.shape}")
-        mask = (mask != 0).astype(np.int32)
+    mask = None if active is None else check_mask("active", active, n)
     if grid is None:
-        if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
-            raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
         grid = (
             LampGrid([0.0] * 3, [1.0] * 3, 1.0)
             if n == 0
@@ -483,7 +530,6 @@ def lamp_update(
         )
     elif not isinstance(grid, LampGrid):
         raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
-    device = wp.get_device(device)
     lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device)
     pos = wp.array((c - grid.origin).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
     rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
@@ -499,16 +545,27 @@ def lamp_forces(centers, radii, pressure, **options) -> np.ndarray:
     P_a A_cell along the ray, at its centre. Opposite lamps light the same cells, so with all six lamps on the
     forces sum to exactly zero on every axis; with a subset of lamps only axes whose two lamps are on balance.
 
+    The float64 forces returned are exact multiples of the rounded P_a A_a (see :func:`pressure_area`), so they
+    sum to exactly zero on every balanced axis, in any order of summation (``math.fsum`` and a plain ``sum``
+    agree). :class:`ShiningLamp`'s float32 forces are these, rounded once each.
+
     Args:
         centers: Particle centres [m], shape (N, 3), float64 welcome: the grid origin is subtracted in float64
-            before the cast to float32, so a body far from the origin gets the same forces as near it.
+            before the cast to float32, so a body far from the origin gets the same forces as near it. A warp
+            array on any device is read to the host once and the work runs on its device (see
+            :func:`lamp_update`).
         radii: Particle radii [m], shape (N,), or one number for all.
-        pressure: Fluid pressure [Pa], one number or (Px, Py, Pz) for polyaxial loading.
+        pressure: Fluid pressure [Pa]: a plain number, or (Px, Py, Pz) for polyaxial loading. Compression is
+            positive: the forces push the body inward.
         **options: The keyword arguments of :func:`lamp_update`: ``grid``, ``cells_per_diameter``,
             ``criterion``, ``lamps``, ``active``, ``device``.
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
+
+    Raises:
+        ValueError: bad data or options, naming the argument (and the first bad index), or a pressure whose
+            P A leaves the exact range.
     """
     p = check_pressure(pressure)
     lamp = lamp_update(centers, radii, **options)
