@@ -306,8 +306,11 @@ def check_grid_cells(name: str, counts, max_bytes, bytes_per_cell: int) -> np.nd
         per_grid = c[:, 0] * c[:, 1]
         cells = float(np.sum(per_grid))
         need = cells * bytes_per_cell
-    shown = f"{int(cells):,}" if math.isfinite(cells) else "more than float64 counts"
-    check_budget(need, max_bytes, f"{name}: the grid's {shown} cells need {format_bytes(need)}", "use larger cells")
+    if math.isfinite(need):
+        what = f"{name}: the grid's {int(cells):,} cells need {format_bytes(need)}"
+    else:
+        what = f"{name}: the grid's cell count overflows float64"
+    check_budget(need, max_bytes, what, "use larger cells")
     if np.any(per_grid > EXACT_CELLS):
         a = int(np.flatnonzero(per_grid > EXACT_CELLS)[0])
         raise ValueError(
