@@ -182,7 +182,9 @@ def _check_args(parser, args) -> None:
             if value not in (None, False):
                 raise CliError(f"{flag} is not used by bench {args.what}")
         if args.from_json:
-            for flag, value in {"--quick": args.quick, "--device": args.device, "--repeats": args.repeats}.items():
+            measuring = {"--quick": args.quick, "--device": args.device, "--repeats": args.repeats}
+            measuring["--target"] = args.target
+            for flag, value in measuring.items():
                 if value not in (None, False):
                     raise CliError(f"{flag} is not used with --from-json, which measures nothing")
             args.saved = _load_json(args.from_json)
