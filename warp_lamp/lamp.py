@@ -186,8 +186,9 @@ class ShiningLamp:
     particles (non-finite, radius <= 0) are skipped and counted in :meth:`diagnostics`, never raised.
 
     With all six lamps on, the counts of each axis sum to exactly zero. The float32 forces that ``add_forces``
-    writes are each the correctly rounded value of an exact float64 force, so they balance to float32 rounding
-    (about 3e-10 of the largest force, relative), not exactly; the exact float64 forces, whose sum is exactly zero,
+    writes are each the correctly rounded value of an exact float64 force, so they balance only to float32
+    rounding (a net force of 1e-10 to 1e-9 of the summed force magnitudes on the SphereTest specimen at 2 to 8
+    cells per diameter), not exactly; the exact float64 forces, whose sum is exactly zero,
     are ``lamp.counts_numpy() * warp_lamp.lamp.pressure_area(P, lamp.grid)`` (as :func:`lamp_forces` returns them).
     With a subset of lamps (``lamps``), the balance holds only on axes whose two lamps are both on.
 
