@@ -343,16 +343,49 @@ def midpoint_mark(
         last_rho = midpoint_last(rho)
         y0 = wp.max(-rho, -cy)
         y1 = wp.min(rho, wp.int64(sub[1]) - wp.int64(1) - cy)
-        for dy32 in range(wp.int32(y0), wp.int32(y1) + 1):
-            dy = wp.int64(dy32)
-            half = midpoint_profile(rho, last_rho, wp.abs(dy)) - wp.int64(1)
+        if y0 > y1:
+            continue
+        # Rows cy +- b for b = |dy| over the box's rows; the profile is followed incrementally along b (it only
+        # falls), from one square root at the first b of each branch.
+        b_lo = wp.int64(0)
+        if y0 > wp.int64(0):
+            b_lo = y0
+        elif y1 < wp.int64(0):
+            b_lo = -y1
+        b_hi = wp.max(-y0, y1)
+        k = wp.int32(cz + dz)
+        y = wp.int64(-1)
+        x = wp.int64(-1)
+        four_rho2 = wp.int64(4) * rho * rho
+        for b32 in range(wp.int32(b_lo), wp.int32(b_hi) + 1):
+            b = wp.int64(b32)
+            width = wp.int64(-1)
+            if b <= last_rho:
+                if y < wp.int64(0):
+                    y = midpoint_profile(rho, last_rho, b)
+                q = wp.int64(2) * y - wp.int64(1)
+                while q * q >= four_rho2 - wp.int64(4) * b * b:
+                    y -= wp.int64(1)
+                    q = wp.int64(2) * y - wp.int64(1)
+                width = y
+            else:
+                if x < wp.int64(0):
+                    x = midpoint_profile(rho, last_rho, b)
+                q = wp.int64(2) * b - wp.int64(1)
+                while x >= wp.int64(0) and wp.int64(4) * x * x >= four_rho2 - q * q:
+                    x -= wp.int64(1)
+                width = wp.min(x, last_rho)
+            half = width - wp.int64(1)
             if half < wp.int64(0):
                 continue
-            i0 = wp.max(cx - half, wp.int64(0))
-            i1 = wp.min(cx + half, wp.int64(sub[0]) - wp.int64(1))
-            if i0 <= i1:
-                row = (wp.int32(cz + dz) * sub[1] + wp.int32(cy + dy)) * words
-                set_run(bits, row, wp.int32(i0), wp.int32(i1))
+            i0 = wp.int32(wp.max(cx - half, wp.int64(0)))
+            i1 = wp.int32(wp.min(cx + half, wp.int64(sub[0]) - wp.int64(1)))
+            if i0 > i1:
+                continue
+            if b <= y1:
+                set_run(bits, (k * sub[1] + wp.int32(cy + b)) * words, i0, i1)
+            if b > wp.int64(0) and -b >= y0:
+                set_run(bits, (k * sub[1] + wp.int32(cy - b)) * words, i0, i1)
 
 
 @wp.kernel
