@@ -67,9 +67,11 @@ def test_bad_grids():
         wl.LampGrid.from_grids(np.zeros((3, 2)), np.ones((3, 2)), [[1, 1], [1, 0], [1, 1]])
     with pytest.raises(ValueError, match=r"corners: expected shape \(3, 2\)"):
         wl.LampGrid.from_grids(np.zeros((2, 2)), np.ones((3, 2)), np.ones((3, 2)))
-    with pytest.raises(ValueError, match=r"grid: 30,000 cells need 480,000 bytes, over the budget of 1,000 bytes"):
+    with pytest.raises(
+        ValueError, match=r"cell_size: the grid's 30,000 cells need 480,000 bytes, over the budget of max_bytes = 1,000"
+    ):
         wl.LampGrid([0, 0, 0], [1, 1, 1], 0.01, max_bytes=1000)
-    with pytest.raises(ValueError, match=r"grid: 3,000,000,000,000 cells"):
+    with pytest.raises(ValueError, match=r"cell_size: the grid's 3,000,000,000,000 cells"):
         wl.LampGrid([0, 0, 0], [1, 1, 1], 1e-6)
     with pytest.raises(ValueError, match=r"margin: must be finite and >= 0"):
         wl.LampGrid.enclosing(GOOD_C, GOOD_R, margin=-1.0)

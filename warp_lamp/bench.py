@@ -264,8 +264,12 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
     return result
 
 
+#: What a table prints where a device or a peer has no value.
+MISSING = "\u2013"
+
+
 def _ms(x):
-    return "-" if x is None else f"{x * 1e3:.3f}"
+    return MISSING if x is None else f"{x * 1e3:.3f}"
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -304,8 +308,8 @@ def format_tables(result: dict) -> str:
                 f"{rate / ceiling:.2f}",
                 _ms(r.get("bvh_build_s")),
                 _ms(r.get("bvh_cast_s")),
-                f"{r['bvh_cast_s'] / best:.1f}x" if "bvh_cast_s" in r else "-",
-                f"{r['reference_s']:.2f}" if "reference_s" in r else "-",
+                f"{r['bvh_cast_s'] / best:.1f}x" if r.get("bvh_cast_s") else MISSING,
+                f"{r['reference_s']:.2f}" if r.get("reference_s") else MISSING,
             ]
         )
     header = ["device", "spheres", "cold ms", "eager ms", "replay ms", "moving ms", "depth ms", "G updates/s"]
@@ -361,35 +365,60 @@ def format_tables(result: dict) -> str:
 
 
 def plot(result: dict, path: str) -> None:
-    """Time per update against E_area, one curve per device and criterion, and beside it the area section's
-    curves (update time against the specimen's force error), when present (needs the `plot` extra)."""
+    """Time per update against E_area, one panel per device (each times its own scene size), one curve per
+    criterion; and, with the ``area`` section, a last panel of update time against the specimen's force error for
+    criterion 1 and the area criterion (needs matplotlib: the ``plot`` extra)."""
     try:
         import matplotlib
     except ImportError as e:
-        raise SystemExit("--plot needs matplotlib: pip install 'warp-lamp[plot]'") from e
+        raise SystemExit(
+            "--plot needs matplotlib: pip install '.[plot]' in a clone, or pip install 'warp-lamp[plot]'"
+        ) from e
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+    devices = list(dict.fromkeys(s["device"] for s in result["sweep"]))
     area = bool(result.get("area"))
-    fig, axes = plt.subplots(1, 1 + area, figsize=(6.4 * (1 + area), 5.2), squeeze=False)
-    ax = axes[0, 0]
-    keys = sorted({(s["device"], s["criterion"]) for s in result["sweep"]})
-    for dev, crit in keys:
-        pts = [s for s in result["sweep"] if s["device"] == dev and s["criterion"] == crit]
-        err = [s["E_area"] for s in pts]
-        t = [(s["replay_s"] or s["eager_s"]) * 1e3 for s in pts]
-        name = result["devices"][dev]["name"]
-        ax.loglog(err, t, "o-", label=f"{dev} ({name}), criterion {crit}, {pts[0]['n']:,} spheres")
-        for s, x, y in zip(pts, err, t, strict=True):
-            ax.annotate(f"d/{s['cells_per_diameter']}", (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("lone-sphere area error E_area (RMS)")
-    ax.set_ylabel("full update [ms]")
-    ax.set_title("Shining lamp: time against error")
-    ax.grid(True, which="both", alpha=0.3)
-    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="lower center", ncol=2, frameon=False)
+    fig, axes = plt.subplots(1, len(devices) + area, figsize=(4.6 * (len(devices) + area), 4.6), squeeze=False)
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    for ax, dev in zip(axes[0][: len(devices)], devices, strict=True):
+        for crit, marker in ((1, "o"), (0, "s")):
+            pts = [s for s in result["sweep"] if s["device"] == dev and s["criterion"] == crit]
+            if not pts:
+                continue
+            err = [s["E_area"] for s in pts]
+            t = [(s["replay_s"] or s["eager_s"]) * 1e3 for s in pts]
+            label = "criterion 1 (centre ray)" if crit == 1 else "criterion 0 (overlap)"
+            ax.loglog(err, t, marker + "-", label=label)
+            for s, x, y in zip(pts, err, t, strict=True):
+                ax.annotate(
+                    f"d/{s['cells_per_diameter']}", (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points"
+                )
+        n = next(s["n"] for s in result["sweep"] if s["device"] == dev)
+        ax.set_title(f"{dev} ({result['devices'][dev]['name']}), {n:,} spheres", fontsize=9)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(plain)
+            axis.set_minor_formatter(NullFormatter())
+        ax.tick_params(labelsize=8)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_xlabel("E_area (lone-sphere force error, RMS)", fontsize=9)
+        ax.legend(fontsize=8, loc="lower left")
+        ax.margins(x=0.12, y=0.08)
+    axes[0, 0].set_ylabel("full update of all six lamps [ms]", fontsize=9)
     if area:
         from warp_lamp.bench_modes import plot_area
 
-        plot_area(axes[0, 1], result)
-    fig.tight_layout(rect=(0, 0.1, 1, 1))
+        plot_area(axes[0, -1], result)
+    fig.suptitle("Shining lamp: time against error, per device", fontsize=10)
+    fig.text(
+        0.5,
+        0.01,
+        "E_area: RMS over random sub-cell offsets and the six lamps of F / (P pi r^2) - 1, F the force one lamp puts "
+        "on a lone sphere; d/k: k cells per diameter",
+        ha="center",
+        fontsize=7.5,
+    )
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     fig.savefig(path, dpi=120)

@@ -136,7 +136,7 @@ def _time_voxel_device(pos, rad, args, device) -> dict:
     sub = tuple(x * s for x in shape)
     h = (upper - lower) / np.asarray(shape)
     bits = porosity_mark_union("voxel", pos, rad, h / s, sub, device)
-    counts = wp.zeros(shape, dtype=wp.int32, device=device)
+    counts = wp.zeros(shape, dtype=wp.int64, device=device)
 
     def run():
         bits.zero_()
@@ -225,30 +225,47 @@ def paper_experiment(device=None, *, radii=(0.001, 0.0025, 0.005), subdivisions:
 
 
 def plot_histograms(paper: dict, path: str) -> None:
-    """Porosity histograms per method (rows) and radius (columns), as the paper's Figures 12-20."""
+    """Porosity histograms per method (rows) and radius (columns), as the paper's Figures 12-20 (needs
+    matplotlib: the ``plot`` extra)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     methods = list(POROSITY_METHODS)
     cases = paper["cases"]
-    fig, axes = plt.subplots(len(methods), len(cases), figsize=(3.2 * len(cases), 1.9 * len(methods)), squeeze=False)
+    colour = {"sum": "tab:red", "union": "tab:blue"}
+    fig, axes = plt.subplots(
+        len(methods), len(cases), figsize=(3.3 * len(cases), 1.9 * len(methods) + 0.9), squeeze=False, sharex=True
+    )
     bins = np.linspace(-1.0, 1.0, 41)
     for j, case in enumerate(cases):
         for i, m in enumerate(methods):
             ax = axes[i, j]
             p = np.asarray(case["methods"][m]["porosity"])
-            ax.hist(np.clip(p, -1.0, 1.0), bins=bins, color="tab:red" if POROSITY_METHODS[m] == "sum" else "tab:blue")
+            ax.hist(np.clip(p, -1.0, 1.0), bins=bins, color=colour[POROSITY_METHODS[m]])
             ax.axvline(0.05, color="k", lw=0.6, ls="--")
             if i == 0:
                 ax.set_title(f"r = {case['radius'] * 1e3:g} mm ({case['n']:,} spheres)", fontsize=9)
             if j == 0:
                 ax.set_ylabel(m, fontsize=9)
+            ax.set_xticks([-1.0, -0.5, 0.0, 0.5, 1.0])
             ax.tick_params(labelsize=7)
-            ax.text(0.02, 0.9, f"<0.05: {case['methods'][m]['below_0.05']:.0%}", transform=ax.transAxes, fontsize=7)
-    axes[-1, len(cases) // 2].set_xlabel("cell porosity (clipped to [-1, 1]); dashed: 0.05")
-    fig.tight_layout()
+            ax.text(0.03, 0.88, f"< 0.05: {case['methods'][m]['below_0.05']:.0%}", transform=ax.transAxes, fontsize=7)
+    fig.supxlabel("cell porosity (clipped to [-1, 1]); dashed line: 0.05", fontsize=9)
+    fig.supylabel("cells per bin (rows: method)", fontsize=9)
+    fig.legend(
+        handles=[
+            Patch(color=colour["sum"], label="sum: overlaps count twice, may go below 0"),
+            Patch(color=colour["union"], label="union: each sub-cell counted once"),
+        ],
+        loc="upper center",
+        ncol=2,
+        fontsize=8,
+        frameon=False,
+    )
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
     fig.savefig(path, dpi=110)
 
 
@@ -265,7 +282,7 @@ def format_porosity(result: dict | None, paper: dict | None) -> str:
             "| --- | --- | --- | --- | --- | --- |",
         ]
         for r in result["rows"]:
-            s = "-" if r["subdivisions"] is None else r["subdivisions"]
+            s = "\u2013" if r["subdivisions"] is None else r["subdivisions"]
             lines.append(
                 f"| {r['device']} | {r['method']} | {s} | {r['time_s'] * 1e3:.2f} | {r['rms']:.2e} | {r['max']:.2e} |"
             )

@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from warp_lamp.validate import check_pressure, lamp_rotation
+from warp_lamp.validate import check_force_range, check_pressure, lamp_rotation
 
 __all__ = [
     "lamp_force_factors",
@@ -57,7 +57,7 @@ def lamp_force_factors(pressure, cell_area, rotation=None, *, unit: int = 1, wei
     area = np.asarray(cell_area, dtype=np.float64) / (unit / weight)
     p = np.asarray(pressure, dtype=np.float64)
     x = (p * area)[None, :] * r
-    if not np.isfinite(x).all() or np.abs(x).max(initial=0.0) > 2.0**900:
+    if not np.isfinite(x).all() or np.abs(x).max(initial=0.0) > 2.0**960:
         raise ValueError(
             f"pressure: P times the cell area ({(p * area).tolist()} N per count) is outside the range in which "
             "the forces can be rounded exactly"
@@ -192,6 +192,14 @@ def pressure_area(pressure, grid) -> np.ndarray:
     """Force per lit cell on each axis [N], shape (3,): P_a times the cell area of grid a.
 
     Rounded to 26 significant bits (relative change below 1.5e-8), so that P_a A_a times any cell count is
-    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation.
+    exact in float64: the forces of all particles then sum to exactly zero, in any order of summation. A
+    simulator that needs that exact float64 sum from a :class:`~warp_lamp.ShiningLamp` (whose forces are float32)
+    computes ``lamp.counts_numpy() * pressure_area(P, lamp.grid)`` (axis-aligned frame, criterion 0 or 1).
+
+    Raises:
+        ValueError: when P_a A_a leaves the range where this is exact (above about 1e291 N, or nonzero below the
+            smallest normal float64), naming ``pressure``.
     """
-    return _round26(check_pressure(pressure) * grid.cell_area)
+    p = check_pressure(pressure)
+    check_force_range(p, grid.cell_area, grid.counts[:, 0] * grid.counts[:, 1])
+    return _round26(p * grid.cell_area)

@@ -9,8 +9,9 @@ from warp_lamp.kernels.grid import LampGridParams
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
     check_box,
-    check_budget,
+    check_grid_cells,
     check_particles,
+    check_positive,
     check_vec3,
     lamp_rotation,
 )
@@ -52,11 +53,13 @@ class LampGrid:
         """
         lower, upper = check_box(lower, upper)
         h = check_vec3("cell_size", cell_size, positive=True)
-        n = np.maximum(np.ceil((upper - lower) / h), 1.0)
+        with np.errstate(over="ignore"):
+            n = np.maximum(np.ceil((upper - lower) / h), 1.0)
         axes = [((a + 1) % 3, (a + 2) % 3) for a in range(3)]
         corner = np.array([[lower[u], lower[v]] for u, v in axes])
         cell = np.array([[h[u], h[v]] for u, v in axes])
         counts = np.array([[n[u], n[v]] for u, v in axes])
+        check_grid_cells("cell_size", counts, max_bytes, BYTES_PER_CELL)
         self._setup(corner, cell, counts, max_bytes, origin=lower, rotation=rotation)
 
     @classmethod
@@ -85,6 +88,7 @@ class LampGrid:
                 raise ValueError(f"{name}: must be > 0; flat index {k} is {arr.ravel()[k]!r}")
         if np.any(counts_f != np.round(counts_f)):
             raise ValueError("counts: must be integers")
+        check_grid_cells("counts", counts_f, max_bytes, BYTES_PER_CELL)
         origin = np.array([min(corners[(a + 2) % 3, 0], corners[(a + 1) % 3, 1]) for a in range(3)])
         self = cls.__new__(cls)
         self._setup(corners, lengths / counts_f, counts_f, max_bytes, origin=origin, rotation=rotation)
@@ -118,16 +122,12 @@ class LampGrid:
         centers, radii = check_particles(centers, radii)
         if len(radii) == 0:
             raise ValueError("centers: need at least one particle to fit a grid")
-        if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
-            raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
+        cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
         rotation = lamp_rotation(rotation)
         centers = centers @ rotation  # frame coordinates: R^T x for each row x
         diameter = 2.0 * float(np.mean(radii))
-        if not (np.isfinite(probe_radius) and probe_radius >= 0):
-            raise ValueError(f"probe_radius: must be finite and >= 0, got {probe_radius!r}")
-        margin = diameter + float(probe_radius) if margin is None else float(margin)
-        if not (np.isfinite(margin) and margin >= 0):
-            raise ValueError(f"margin: must be finite and >= 0, got {margin!r}")
+        probe_radius = check_positive("probe_radius", probe_radius, allow_zero=True)
+        margin = diameter + probe_radius if margin is None else check_positive("margin", margin, allow_zero=True)
         lo = np.min(centers - radii[:, None], axis=0) - margin
         hi = np.max(centers + radii[:, None], axis=0) + margin
         h = diameter / cells_per_diameter
@@ -135,19 +135,16 @@ class LampGrid:
         # exactly whenever the body's extent is a whole number of cells: a tie that float32 rounding decides.
         # Shift the body by a golden-ratio fraction of the slack instead: irrational, so no whole-cell extent
         # can bring an extreme onto an edge.
-        n = np.floor((hi - lo) / h) + 1.0
+        with np.errstate(over="ignore", divide="ignore"):
+            n = np.floor((hi - lo) / h) + 1.0
+        check_grid_cells(
+            "cells_per_diameter", [[n[(a + 1) % 3], n[(a + 2) % 3]] for a in range(3)], max_bytes, BYTES_PER_CELL
+        )
         lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
         return cls(lower, lower + n * h, h, rotation=rotation, max_bytes=max_bytes)
 
     def _setup(self, corner, cell, counts, max_bytes, *, origin, rotation):
-        counts = np.asarray(counts, dtype=np.float64)
-        cells = int(np.sum(counts[:, 0] * counts[:, 1]))
-        need = cells * BYTES_PER_CELL
-        check_budget(
-            need, max_bytes, f"grid: {cells:,} cells need {need:,} bytes", "raise max_bytes or use larger cells"
-        )
-        if cells >= 2**30:
-            raise ValueError(f"grid: {cells:,} cells, over the 2**30 that int32 cell and key indices allow")
+        counts = check_grid_cells("grid", counts, max_bytes, BYTES_PER_CELL)
         self._rotation = _read_only(lamp_rotation(rotation))
         self._origin = _read_only(np.asarray(origin, dtype=np.float64))
         self._corner = _read_only(np.asarray(corner, dtype=np.float64))

@@ -12,7 +12,21 @@ from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.kernels.footprint import RAY_CORNER
-from warp_lamp.validate import DEFAULT_MAX_BYTES, LAMPS, check_budget, check_particles, lamp_mask, lamp_names
+from warp_lamp.validate import (
+    DEFAULT_MAX_BYTES,
+    LAMPS,
+    check_budget,
+    check_device_match,
+    check_force_range,
+    check_integer,
+    check_mask,
+    check_particles,
+    check_positions,
+    check_positive,
+    check_vec3,
+    lamp_mask,
+    lamp_names,
+)
 from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, WettedSurface
 
 __all__ = [
@@ -173,6 +187,10 @@ class ShiningLamp:
     (one ``vec3``, world coordinates) and :attr:`rotation` (one ``mat33``), which a simulator may overwrite between
     replays of a captured graph to move and turn the frame with its body; ``follow=True`` moves it by whole cells
     itself.
+
+    ``add_forces`` before any ``update`` raises RuntimeError naming ``update``: there are no counts yet. A captured
+    graph cannot record that state, because capture needs an eager update (or :meth:`reserve` and an update
+    earlier in the same capture) first.
     """
 
     def __init__(
@@ -375,7 +393,12 @@ class ShiningLamp:
 
     def reserve(self, n: int) -> None:
         """Make room for ``n`` particles now, so that a later captured update need not allocate; this also fixes
-        the depth pass's ``split`` for them."""
+        the depth pass's ``split`` for them.
+
+        Args:
+            n: Particle count, an integer >= 0.
+        """
+        n = check_integer("n", n)
         for child in self.frames:
             child.reserve(n)
         if self.frames:
@@ -634,6 +657,7 @@ class ShiningLamp:
         if self.frames:
             raise ValueError("force_factors: one per frame; use lamp.frames[k].force_factors")
         p, _ = lamp_pressure(pressure, self.grid.rotation)
+        check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1])
         return lamp_force_factors(p, self._force_area(), self.grid.rotation)
 
     def add_forces(self, forces: wp.array, pressure) -> None:
@@ -643,13 +667,15 @@ class ShiningLamp:
             forces: Simulator force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
             pressure: Fluid pressure [Pa]: a number, three numbers (per lamp axis), a stress tensor (3 x 3,
                 compression positive) diagonal in the lamp frame, or a warp float32 array of 1 or 3 values on the
-                device (read when the kernel runs, so a captured graph sees its current value).
+                device (read when the kernel runs, so a captured graph sees its current value; a device value is
+                not range-checked, since reading it would synchronise).
 
         Raises:
-            RuntimeError: before any update (there are no counts to turn into forces yet).
+            RuntimeError: before any ``update`` (eager, or earlier in the same capture): there are no counts yet.
+            ValueError: a constant pressure whose P A count leaves float32's range, or the exact range.
         """
         if self._inputs is None:
-            raise RuntimeError("add_forces: call update (or apply) first; there are no counts yet")
+            raise RuntimeError("add_forces: no counts yet; call ShiningLamp.update (or apply) first")
         if self.frames:
             for child in self.frames:
                 child.add_forces(forces, pressure)
@@ -665,6 +691,7 @@ class ShiningLamp:
         else:
             p, _ = lamp_pressure(pressure, self.grid.rotation)
             self.force_factors(p)  # refuses P A outside the exact range
+            check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1], float32=True)
             const = wp.vec3d(*p)
         if self.n > 0:
             in_frame = self._inputs[0]
@@ -718,12 +745,17 @@ class ShiningLamp:
         crossings, the connectivity solve), with the resultant force in world coordinates.
 
         Args:
-            positions: Particle centres in world coordinates [m], shape (N, 3) (numpy or warp), for the moment.
+            positions: Particle centres [m], shape (N, 3) with N of the last update (numpy, or warp on any device),
+                world coordinates, for the resultant moment.
             pressure: Pressure [Pa] (as :meth:`add_forces` takes it on the host), for the resultant force and moment.
             moment_origin: Point for the moment [m]; the mean centre of the lit particles by default.
         """
         if self.frames:
             raise ValueError("diagnostics: one per frame; use lamp.frames[k].diagnostics()")
+        if positions is not None:
+            positions = check_positions("positions", positions, self.n)
+        if moment_origin is not None:
+            moment_origin = check_vec3("moment_origin", moment_origin)
         if self._wet is not None:
             out = self._wet.diagnostics()
             if pressure is not None:
@@ -758,8 +790,7 @@ class ShiningLamp:
             f = self.forces_numpy(pressure)
             out.force = f.sum(axis=0)
             if positions is not None:
-                x = positions.numpy() if isinstance(positions, wp.array) else np.asarray(positions)
-                x = np.asarray(x, dtype=np.float64)[: self.n]
+                x = positions
                 if moment_origin is None:
                     moment_origin = x[surface].mean(axis=0) if surface.any() else np.zeros(3)
                 out.moment_origin = np.asarray(moment_origin, dtype=np.float64)
@@ -785,34 +816,35 @@ def lamp_update(
     before the cast to float32, so a body far from the origin gets the same result as near it; pass ``centers`` to
     ``diagnostics`` for the moment.
 
+    Warp arrays are accepted on any device: they are read to the host once (to validate them and subtract the
+    origin in float64), and the update then runs on the device where they live, unless ``device`` names another,
+    which is refused.
+
     Args:
-        centers: Particle centres [m], shape (N, 3).
-        radii: Particle radii [m], shape (N,), or one number for all.
+        centers: Particle centres [m], shape (N, 3): NumPy or a sequence (float64 welcome), or a warp ``vec3`` /
+            ``vec3d`` array on any device.
+        radii: Particle radii [m], shape (N,), or one number for all (NumPy, or a warp array).
         grid: Lamp grids; by default :meth:`LampGrid.enclosing` with ``cells_per_diameter`` (a placeholder
             one-cell grid when there are no particles).
         cells_per_diameter: Cells per mean particle diameter for the default grid.
         criterion: 1, cell-centre ray (default); 0, cell rectangle meets the projected disk; ``"area"``, each
             cell's area split among the spheres visible in it (:class:`ShiningLamp`).
         lamps: "all", or names from :data:`LAMPS` ("-x" is the lamp at minus infinity, pushing toward +x).
-        active: Optional mask, shape (N,): inactive particles are invisible (no shadow, no force).
-        device: Warp device; the current default when None.
+        active: Optional mask, shape (N,), booleans or numbers (nonzero: active): inactive particles are
+            invisible (no shadow, no force).
+        device: Warp device; by default where warp-array inputs live, else the current default.
         **lamp_options: Further keywords of :class:`ShiningLamp` (``depth_slots``, ``resolver``, ``subpoints``,
             ``surfaces``, ``probe_radius``, ``max_rounds``, ``split``, ``order``, ``max_bytes``); with
             ``surfaces="all"`` the default grid's margin grows by ``probe_radius``.
     """
+    device = check_device_match(device, centers=centers, radii=radii, active=active)
     c, r = check_particles(centers, radii)
     criterion = _check_criterion(criterion)
     lamps = lamp_names(lamps)
+    cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
     n = c.shape[0]
-    mask = None
-    if active is not None:
-        mask = np.asarray(active)
-        if mask.shape != (n,):
-            raise ValueError(f"active: expected shape ({n},), got {mask.shape}")
-        mask = (mask != 0).astype(np.int32)
+    mask = None if active is None else check_mask("active", active, n)
     if grid is None:
-        if not (np.isfinite(cells_per_diameter) and cells_per_diameter > 0):
-            raise ValueError(f"cells_per_diameter: must be finite and > 0, got {cells_per_diameter!r}")
         probe = lamp_options.get("probe_radius") if lamp_options.get("surfaces") == "all" else None
         if n == 0:
             grid = LampGrid([0.0] * 3, [1.0] * 3, 1.0)
@@ -820,7 +852,6 @@ def lamp_update(
             grid = LampGrid.enclosing(c, r, cells_per_diameter=cells_per_diameter, probe_radius=probe or 0.0)
     elif not isinstance(grid, LampGrid):
         raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
-    device = wp.get_device(device)
     lamp = ShiningLamp(grid, criterion=criterion, lamps=lamps, device=device, **lamp_options)
     pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
     rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
@@ -838,9 +869,15 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
     axis, in any order of summation (also in a rotated frame, and averaged over frames: each world component is a
     sum of integer multiples of powers of two); with a subset of lamps only axes whose two lamps are on balance.
 
+    The float64 forces returned are exact multiples of the rounded P_a A_a (see :func:`pressure_area`), so they
+    sum to exactly zero on every balanced axis, in any order of summation (``math.fsum`` and a plain ``sum``
+    agree). :class:`ShiningLamp`'s float32 forces are these, rounded once each.
+
     Args:
         centers: Particle centres [m], shape (N, 3), float64 welcome: the grid origin is subtracted in float64
-            before the cast to float32, so a body far from the origin gets the same forces as near it.
+            before the cast to float32, so a body far from the origin gets the same forces as near it. A warp
+            array on any device is read to the host once and the work runs on its device (see
+            :func:`lamp_update`).
         radii: Particle radii [m], shape (N,), or one number for all.
         pressure: Fluid pressure [Pa]: one number, (P1, P2, P3) per lamp axis (polyaxial loading), or a
             symmetric 3 x 3 stress tensor (compression positive), which the lamp applies in its principal frame
@@ -854,6 +891,10 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
+
+    Raises:
+        ValueError: bad data or options, naming the argument (and the first bad index), or a pressure whose
+            P A leaves the exact range.
     """
     grid = options.pop("grid", None)
     if grid is not None and not isinstance(grid, LampGrid):
@@ -862,6 +903,9 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
     frames = _check_int("frames", frames, 1, 1 << 10)
     if frames > 1 and np.ptp(p) > 0:
         raise ValueError("frames: frame averaging needs an isotropic pressure (the lamp axes turn from frame to frame)")
+    options["device"] = check_device_match(
+        options.get("device"), centers=centers, radii=radii, active=options.get("active")
+    )
     c, r = check_particles(centers, radii)
     cells_per_diameter = options.pop("cells_per_diameter", 4)
     base = np.eye(3) if frame is None else frame

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import warp as wp
 
@@ -10,38 +12,136 @@ from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
     check_box,
     check_budget,
+    check_device_match,
+    check_max_bytes,
     check_particles,
     check_shape,
     check_subdivisions,
+    format_bytes,
 )
 
 __all__ = [
+    "MIDPOINT_MAX_RADIUS",
     "POROSITY_METHODS",
     "count_bitmap",
     "kozeny_carman",
     "midpoint_choice",
+    "midpoint_subdivisions",
     "porosity",
     "porosity_bitmap_bytes",
     "porosity_mark_union",
+    "porosity_nbytes",
 ]
 
 #: Methods of :func:`porosity`: sum kinds count overlaps twice and may go below zero; union kinds do not.
 POROSITY_METHODS = {"centroid": "sum", "polyhedron": "sum", "exact": "sum", "voxel": "union", "midpoint": "union"}
 
+#: Largest sphere radius, in sub-cells, of the midpoint method: its integer circle arithmetic (4 r^2 in int64,
+#: through a float64 square root) is exact up to there.
+MIDPOINT_MAX_RADIUS = 1 << 24
 
-def porosity_bitmap_bytes(shape, subdivisions: int) -> int:
-    """Bytes of the sub-cell bitmap the union methods need for ``shape`` cells of ``subdivisions``^3 sub-cells."""
-    sx, sy, sz = (int(n) * int(subdivisions) for n in shape)
+#: Most sub-cells along one axis: bitmap rows and sub-cell coordinates are int32 in the kernels.
+_MAX_SUB = 1 << 30
+#: Algorithm 2 keeps sub-cell coordinates in a float32 hash grid, exact up to 2**24.
+_MAX_SUB_HASH = 1 << 24
+
+
+def _subdivisions(subdivisions) -> tuple[int, int, int]:
+    return check_subdivisions(subdivisions)
+
+
+def porosity_bitmap_bytes(shape, subdivisions) -> int:
+    """Bytes of the sub-cell bitmap the union methods need for ``shape`` cells of ``subdivisions`` sub-cells per
+    cell edge (one integer, or three along x, y, z)."""
+    s = _subdivisions(subdivisions)
+    sx, sy, sz = (int(n) * k for n, k in zip(shape, s, strict=True))
     return 4 * ((sx + 31) // 32) * sy * sz
+
+
+def porosity_nbytes(shape, *, method: str = "voxel", subdivisions=8, n_spheres: int = 0) -> int:
+    """Device memory one :func:`porosity` call allocates [bytes], known before anything is allocated.
+
+    Sum methods: the float64 solid volume per cell, and the spheres in float64 (32 B each). Union methods: the
+    sub-cell bitmap, an int64 count per cell, and the spheres (float64 for voxel; int32 sub-cell centres and radii
+    for midpoint, plus, for its Algorithm 2, a hash grid of up to 128^3 cells and float32 centres). The host's copy
+    of the result is the size of the per-cell array again.
+
+    Args:
+        shape: Cells along x, y, z.
+        method: One of :data:`POROSITY_METHODS`.
+        subdivisions: Sub-cells per cell edge (union methods), one integer or three.
+        n_spheres: Spheres the call sends to the device.
+    """
+    cells = int(np.prod([int(x) for x in shape], dtype=object))
+    n = int(n_spheres)
+    if POROSITY_METHODS[method] == "sum":
+        return 8 * cells + 32 * n
+    need = porosity_bitmap_bytes(shape, subdivisions) + 8 * cells
+    if method == "voxel":
+        return need + 32 * n
+    return need + 16 * n + 8 * 128**3 + 48 * n
+
+
+def midpoint_subdivisions(cell, subdivisions, *, per_axis: bool) -> tuple[int, int, int]:
+    """Sub-cells per cell edge for the midpoint method, whose sub-cells must be cubes (the paper draws spheres on a
+    cubic sub-grid; on stretched sub-cells they would become ellipsoids).
+
+    Args:
+        cell: Cell edges [m], 3 values.
+        subdivisions: Sub-cells per cell edge: (sx, sy, sz) used as given, or one integer s, the count along the
+            cell's shortest edge, the other edges getting as many sub-cells of the same size as fit whole (a
+            1 x 1 x 2 cell at s = 8 gives (8, 8, 16)).
+        per_axis: ``subdivisions`` was given as three numbers.
+
+    Raises:
+        ValueError: when the sub-cells would not be cubes (to 1e-9, relative), naming ``subdivisions``.
+    """
+    h = np.asarray(cell, dtype=np.float64)
+    s = np.asarray(_subdivisions(subdivisions), dtype=np.float64)
+    if per_axis:
+        edges = h / s
+        if edges.max() - edges.min() <= 1e-9 * edges.min():
+            return tuple(int(x) for x in s)
+        raise ValueError(
+            f"subdivisions: midpoint needs cubic sub-cells, but {tuple(int(x) for x in s)} cuts cells of "
+            f"{h.tolist()} m into sub-cells of {edges.tolist()} m; choose counts proportional to the cell edges, "
+            "or use method='voxel', which is exact for any cell shape"
+        )
+    want = h / (h.min() / s[0])
+    whole = np.rint(want)
+    if np.all(np.abs(want - whole) <= 1e-9 * want):
+        return tuple(int(x) for x in whole)
+    raise ValueError(
+        f"subdivisions: midpoint needs cubic sub-cells; cells of {h.tolist()} m with {int(s[0])} along the shortest "
+        f"edge would need {want.tolist()} along x, y, z, not whole numbers; pass three subdivisions (x, y, z) whose "
+        "sub-cell edges agree, or use method='voxel', which is exact for any cell shape"
+    )
 
 
 def _midpoint_spheres(local, radii, hs):
     """Sphere centres and radii in sub-cell units, as the paper's algorithms take them: the centre goes to the
-    sub-cell that holds it, the radius is rounded to the nearest whole number of sub-cells (at least 1)."""
+    sub-cell that holds it, the radius is rounded to the nearest whole number of sub-cells (at least 1). float64
+    (whole numbers), so that a far or huge sphere cannot overflow before it is dropped or refused."""
     h = float(np.min(hs))
-    centers = np.floor(local / hs).astype(np.int32)
-    rad = np.maximum(np.rint(radii / h), 1).astype(np.int32)
+    centers = np.floor(local / hs)
+    rad = np.maximum(np.rint(radii / h), 1.0)
     return centers, rad
+
+
+def _midpoint_inputs(local, radii, hs, sub):
+    """The midpoint method's spheres that can mark a sub-cell, as int32 sub-cell centres and radii: a sphere whose
+    cube [c - r, c + r] misses the sub-grid marks nothing in either algorithm and is dropped, so that neither its
+    position nor its size can overflow. Returns (centres, radii, all radii in sub-cells as float64)."""
+    mc, mr = _midpoint_spheres(local, radii, hs)
+    reach = np.all(mc + mr[:, None] >= 0, axis=1) & np.all(mc - mr[:, None] <= np.asarray(sub) - 1, axis=1)
+    big = reach & (mr > MIDPOINT_MAX_RADIUS)
+    if big.any():
+        k = int(np.flatnonzero(big)[0])
+        raise ValueError(
+            f"radii: sphere {k} is {mr[k]:.4g} sub-cells in radius, over the {MIDPOINT_MAX_RADIUS:,} that the midpoint "
+            "method's integer arithmetic holds; use method='voxel', or fewer subdivisions"
+        )
+    return mc[reach].astype(np.int32), mr[reach].astype(np.int32), mr
 
 
 def midpoint_choice(radii_sub: np.ndarray, n_subcells: int) -> int:
@@ -52,8 +152,33 @@ def midpoint_choice(radii_sub: np.ndarray, n_subcells: int) -> int:
     """
     if len(radii_sub) == 0:
         return 1
-    r = radii_sub.astype(np.float64)
-    return 2 if np.sum(4.0 / 3.0 * np.pi * r**3) > 8.0 * n_subcells * float(r.max()) ** 3 else 1
+    r = np.asarray(radii_sub, dtype=np.float64)
+    return 2 if np.sum(4.0 / 3.0 * np.pi * r**3) > 8.0 * float(n_subcells) * float(r.max()) ** 3 else 1
+
+
+def _warn_outside(c, r, lo, hi) -> None:
+    """Warn when the spheres cannot be meant for this box: none reaches it, or they fill under 1e-9 of it."""
+    if len(r) == 0:
+        return
+    outside = np.any((c + r[:, None] <= lo) | (c - r[:, None] >= hi), axis=1)
+    if outside.all():
+        k = 0
+        warnings.warn(
+            f"porosity: all {len(r)} spheres lie wholly outside the box {lo.tolist()} .. {hi.tolist()} (sphere {k}: "
+            f"centre {c[k].tolist()}, radius {r[k]:g}), so every cell is empty; do the box and the spheres share one "
+            "unit (SI: metres)?",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return
+    volume = float(np.sum(4.0 / 3.0 * np.pi * r**3))
+    if volume < 1e-9 * float(np.prod(hi - lo)):
+        warnings.warn(
+            f"porosity: the {len(r)} spheres' volume is {volume / float(np.prod(hi - lo)):.2g} of the box's; do "
+            "the box and the spheres share one unit (SI: metres)?",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def porosity(
@@ -64,7 +189,7 @@ def porosity(
     shape,
     *,
     method: str = "voxel",
-    subdivisions: int = 8,
+    subdivisions=8,
     device=None,
     midpoint_algorithm: int | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
@@ -78,11 +203,19 @@ def porosity(
         ``"exact"`` (sum): the exact volume of each sphere inside each cell (closed form, float64), summed over
             spheres, so overlapping spheres count twice, as CFD-DEM codes do.
         ``"voxel"`` (union): each cell is cut into ``subdivisions``^3 sub-cells; a sub-cell is solid when its
-            true centre lies in any sphere (no rounding of centres or radii), and is counted once.
+            true centre lies in any sphere (no rounding of centres or radii), and is counted once. Exact in the
+            limit for any cell shape; sub-cells may be stretched.
         ``"midpoint"`` (union): the paper's own algorithm on the same sub-grid: sphere centres go to the sub-cell
             that holds them and radii are rounded to whole sub-cells; Algorithm 1 (traversal sphere, 3D midpoint
             circle) or Algorithm 2 (traversal small-grid), chosen by the discriminant of its section 2.3 unless
-            ``midpoint_algorithm`` (1 or 2) forces one. The printed pseudo-code needed these fixes to run:
+            ``midpoint_algorithm`` (1 or 2) forces one. Its sub-cells must be cubes, or the spheres would become
+            ellipsoids: an integer ``subdivisions`` is the count along each cell's shortest edge and the longer
+            edges get whole multiples of the same sub-cell (cells 1 x 1 x 2 at 8 give 8 x 8 x 16 sub-cells);
+            cells whose edges are not whole multiples of one sub-cell are refused (ValueError naming
+            ``subdivisions``), as are three subdivisions that give non-cubic sub-cells. Algorithm 1 is evaluated
+            in closed form only on the rows inside the box, so a sphere much larger than the box costs the box's
+            rows, not r^2; radii above :data:`MIDPOINT_MAX_RADIUS` sub-cells are refused. The printed pseudo-code
+            needed these fixes to run:
             (1) the decision parameter starts at p = 5/4 - r (the value the text derives), not the printed 5/4;
             (2) ``circle`` tests ``yr >= x`` with x undefined: it is z, the outer loop's variable; (3) ``circle``
             initialises ``P`` but updates ``p``: one variable; (4) Algorithm 2 keeps one flag per sub-cell and a
@@ -95,49 +228,64 @@ def porosity(
     Sum methods may return porosity below zero where spheres overlap or (polyhedron) where cubes overstate the
     spheres: it is returned as is, unclamped, because clamping would hide exactly what the paper reports.
 
+    Every device allocation (:func:`porosity_nbytes`) is checked against ``max_bytes`` before anything is
+    allocated. A RuntimeWarning says when no sphere reaches the box, or when the spheres fill under 1e-9 of it:
+    the signs of a box and spheres in different units.
+
     Args:
-        centers: Sphere centres [m], shape (N, 3).
-        radii: Sphere radii [m], shape (N,), or one number.
+        centers: Sphere centres [m], shape (N, 3): NumPy, sequences, or a warp ``vec3``/``vec3d`` array on any
+            device (read to the host once, for the checks; the work then runs on that device).
+        radii: Sphere radii [m], shape (N,), or one number (NumPy, or a warp array).
         lower: Lower corner of the box [m], 3 values.
         upper: Upper corner of the box [m], 3 values.
         shape: Cells along x, y, z.
         method: One of :data:`POROSITY_METHODS`.
-        subdivisions: Sub-cells per cell edge for the union methods.
-        device: Warp device.
+        subdivisions: Sub-cells per cell edge for the union methods: one integer, or three (along x, y, z).
+        device: Warp device; by default where warp-array inputs live, else Warp's default.
         midpoint_algorithm: Force Algorithm 1 or 2 of the midpoint method (default: the paper's discriminant).
-        max_bytes: Budget for the union methods' bitmap; a larger one raises ValueError before allocating.
+        max_bytes: Budget for the call's device memory [bytes]; a larger need raises ValueError before
+            allocating. ``math.inf`` for none.
 
     Returns:
         Porosity, shape ``shape``, float64, indexed [i, j, k] along x, y, z.
     """
+    device = check_device_match(device, centers=centers, radii=radii)
     c, r = check_particles(centers, radii)
     lo, hi = check_box(lower, upper)
     shape = check_shape(shape)
-    if method not in POROSITY_METHODS:
+    if not isinstance(method, str) or method not in POROSITY_METHODS:
         raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
-    s = check_subdivisions(subdivisions)
-    if midpoint_algorithm not in (None, 1, 2):
+    per_axis = not isinstance(subdivisions, (int, np.integer))
+    s = _subdivisions(subdivisions)
+    if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
         raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
-    device = wp.get_device(device)
+    max_bytes = check_max_bytes(max_bytes)
     h = (hi - lo) / np.asarray(shape)
+    if method == "midpoint":
+        s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
+    sub = tuple(x * k for x, k in zip(shape, s, strict=True))
+    need = porosity_nbytes(shape, method=method, subdivisions=s, n_spheres=len(r))
+    if POROSITY_METHODS[method] == "sum":
+        what = f"shape: {shape} cells and {len(r):,} spheres need {format_bytes(need)}"
+        check_budget(need, max_bytes, what, "use fewer cells")
+    else:
+        bitmap = porosity_bitmap_bytes(shape, s)
+        what = (
+            f"subdivisions: {s} on shape {shape} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and a "
+            f"{format_bytes(bitmap)} bitmap, {format_bytes(need)} in all"
+        )
+        check_budget(need, max_bytes, what, "lower subdivisions or use fewer cells")
+        if max(sub) > _MAX_SUB or bitmap // 4 >= 1 << 31:
+            raise ValueError(f"subdivisions: {s} on shape {shape} gives {sub} sub-cells, over the int32 indices")
+    _warn_outside(c, r, lo, hi)
     local = c - lo  # float64, so that a box far from the origin loses nothing
     if POROSITY_METHODS[method] == "sum":
         solid = _porosity_sum(method, local, r, h, shape, device)
         return 1.0 - solid / float(np.prod(h))
-    need = porosity_bitmap_bytes(shape, s)
-    sub = tuple(x * s for x in shape)
-    check_budget(
-        need,
-        max_bytes,
-        f"subdivisions: {s} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and a {need:,}-byte bitmap",
-        "raise max_bytes or lower subdivisions",
-    )
-    bits = porosity_mark_union(
-        method, local, r, h / s, tuple(x * s for x in shape), device, algorithm=midpoint_algorithm
-    )
-    counts = wp.zeros(shape, dtype=wp.int32, device=device)
+    bits = porosity_mark_union(method, local, r, h / np.asarray(s), sub, device, algorithm=midpoint_algorithm)
+    counts = wp.zeros(shape, dtype=wp.int64, device=device)
     count_bitmap(bits, shape, s, counts)
-    return 1.0 - counts.numpy().astype(np.float64) / float(s**3)
+    return 1.0 - counts.numpy().astype(np.float64) / float(s[0] * s[1] * s[2])
 
 
 def _porosity_sum(method, local, radii, h, shape, device) -> np.ndarray:
@@ -196,20 +344,27 @@ def porosity_mark_union(method, local, radii, hs, sub, device, *, algorithm=None
         return bits
     local = local.numpy() if isinstance(local, wp.array) else local
     radii = radii.numpy() if isinstance(radii, wp.array) else radii
-    mc, mr = _midpoint_spheres(local, radii, np.asarray(hs))
-    algorithm = algorithm or midpoint_choice(mr, sub[0] * sub[1] * sub[2])
+    mc, mr, all_radii = _midpoint_inputs(local, radii, np.asarray(hs), sub)
+    algorithm = algorithm or midpoint_choice(all_radii, sub[0] * sub[1] * sub[2])
+    if len(mr) == 0:
+        return bits
     cen = wp.array(mc, dtype=wp.vec3i, device=device)
     rad = wp.array(mr, dtype=wp.int32, device=device)
     if algorithm == 1:
         wp.launch(
             porosity_kernels.midpoint_mark,
-            dim=n,
+            dim=len(mr),
             inputs=[cen, rad, wp.vec3i(*sub), words],
             outputs=[bits],
             device=device,
         )
         return bits
     rmax = int(mr.max())
+    if max(sub) + rmax > _MAX_SUB_HASH:
+        raise ValueError(
+            f"midpoint_algorithm: Algorithm 2 keeps sub-cell coordinates (up to {max(sub) + rmax:,}) in a float32 "
+            "hash grid, exact only to 2**24; use midpoint_algorithm=1 or fewer subdivisions"
+        )
     grid = wp.HashGrid(*(max(1, min(128, x // max(1, 2 * rmax))) for x in sub), device=device)
     grid.build(wp.array(mc.astype(np.float32), dtype=wp.vec3, device=device), float(rmax))
     # Every centre within the cube |d| <= R is within R sqrt(3) of the sub-cell.
@@ -224,13 +379,15 @@ def porosity_mark_union(method, local, radii, hs, sub, device, *, algorithm=None
     return bits
 
 
-def count_bitmap(bits: wp.array, shape, s: int, counts: wp.array) -> None:
-    """Add each cell's solid sub-cells (the set bits of the bitmap of ``shape`` cells of s^3 sub-cells) to counts."""
-    sub = tuple(int(x) * s for x in shape)
+def count_bitmap(bits: wp.array, shape, s, counts: wp.array) -> None:
+    """Add each cell's solid sub-cells (the set bits of the bitmap of ``shape`` cells of ``s`` sub-cells per edge,
+    one integer or three) to ``counts``, an int64 warp array of shape ``shape``."""
+    s = _subdivisions(s)
+    sub = tuple(int(x) * k for x, k in zip(shape, s, strict=True))
     wp.launch(
         porosity_kernels.bitmap_count,
         dim=(shape[0], shape[1], sub[2]),
-        inputs=[bits, wp.vec3i(*sub), (sub[0] + 31) // 32, wp.vec3i(s, s, s)],
+        inputs=[bits, wp.vec3i(*sub), (sub[0] + 31) // 32, wp.vec3i(*s)],
         outputs=[counts],
         device=bits.device,
     )

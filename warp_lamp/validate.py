@@ -1,21 +1,39 @@
-"""Host-side input checks: each error names the argument and, for data, the first bad index."""
+"""Host-side input checks: each error names the argument and, for data, the first bad index.
+
+Every check here runs on the host, before anything is allocated or launched. Device paths that a CUDA graph may
+capture never raise: they skip bad elements and count them (see :class:`warp_lamp.ShiningLamp`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import math
+import numbers
+from collections.abc import Iterable, Iterator
 
 import numpy as np
 
 __all__ = [
     "DEFAULT_MAX_BYTES",
+    "EXACT_CELLS",
     "LAMPS",
+    "array_device",
     "check_box",
     "check_budget",
+    "check_device_match",
+    "check_force_range",
+    "check_grid_cells",
+    "check_integer",
+    "check_mask",
+    "check_max_bytes",
     "check_particles",
+    "check_positions",
+    "check_positive",
     "check_pressure",
     "check_shape",
     "check_subdivisions",
     "check_vec3",
+    "format_bytes",
+    "host_array",
     "lamp_mask",
     "lamp_names",
     "lamp_rotation",
@@ -23,6 +41,83 @@ __all__ = [
 
 #: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
 DEFAULT_MAX_BYTES = 2 << 30
+
+#: Most cells one lamp grid (one axis) may have: P_a A_a keeps 26 significant bits, so every partial sum of
+#: P_a A_a times at most 2**27 cells has at most 53 and is exact in float64; the forces then sum to exactly zero in
+#: any order.
+EXACT_CELLS = 1 << 27
+
+#: Largest |P_a A_a| [N]: its Veltkamp split multiplies it by 2**27 + 1, and it is then multiplied by up to 2**27
+#: cells, both of which must stay finite in float64.
+_MAX_PRESSURE_AREA = np.finfo(np.float64).max / 2.0**56
+#: Smallest nonzero |P_a A_a| [N]: below the smallest normal float64, the 26-bit rounding is no longer exact.
+_MIN_PRESSURE_AREA = np.finfo(np.float64).tiny
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes for a message: exact with thousands separators, and in GiB or TiB when large."""
+    if not math.isfinite(n):
+        return "more bytes than float64 counts"
+    text = f"{int(n):,} bytes"
+    if n >= 1 << 40:
+        text += f" ({n / (1 << 40):.3g} TiB)"
+    elif n >= 1 << 30:
+        text += f" ({n / (1 << 30):.3g} GiB)"
+    return text
+
+
+def host_array(value):
+    """``value`` as something NumPy converts: a warp array (on any device) is copied to the host once, and a
+    one-shot iterator (a generator, ``map``, ``iter(...)``) is read once into a list, so that it is not consumed by
+    one check and then seen empty by the next."""
+    import warp as wp
+
+    if isinstance(value, wp.array):
+        return value.numpy()
+    if isinstance(value, Iterator):
+        return list(value)
+    return value
+
+
+def array_device(*values):
+    """The device of the first warp array among ``values``, or None when none is one."""
+    import warp as wp
+
+    for v in values:
+        if isinstance(v, wp.array):
+            return v.device
+    return None
+
+
+def check_device_match(device, **arrays):
+    """The device a host-level call runs on: where its warp arrays live, unless ``device`` says otherwise.
+
+    Args:
+        device: The caller's ``device`` argument (None: where the arrays live, else Warp's default).
+        **arrays: The call's array arguments by name; warp arrays among them must share one device.
+
+    Raises:
+        ValueError: warp arrays on two devices, or ``device`` naming another device than theirs.
+    """
+    import warp as wp
+
+    found = None
+    for name, value in arrays.items():
+        if isinstance(value, wp.array):
+            if found is None:
+                found = (name, value.device)
+            elif value.device != found[1]:
+                raise ValueError(f"{name}: on {value.device}, but {found[0]} is on {found[1]}")
+    if device is None:
+        return found[1] if found else wp.get_device(None)
+    dev = wp.get_device(device)
+    if found and dev != found[1]:
+        raise ValueError(
+            f"device: {dev} was asked for, but {found[0]} lives on {found[1]}; leave device=None to compute where "
+            "the arrays live, or copy them first"
+        )
+    return dev
 
 
 #: Lamp names in bit order: "-x" is the lamp at minus infinity on x, shining toward +x.
@@ -57,16 +152,25 @@ def _first_bad(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask.reshape(mask.shape[0], -1).any(axis=1))[0])
 
 
+def _as_float(name: str, value, what: str) -> np.ndarray:
+    value = host_array(value)
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name}: expected {what}, got a string {value!r}")
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: not convertible to a float array ({e})") from None
+    return arr
+
+
 def check_particles(centers, radii) -> tuple[np.ndarray, np.ndarray]:
-    """Return float64 copies of ``centers`` (N, 3) and ``radii`` (N,), or raise ValueError naming the problem."""
-    try:
-        c = np.asarray(centers, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"centers: not convertible to a float array ({e})") from None
-    try:
-        r = np.asarray(radii, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"radii: not convertible to a float array ({e})") from None
+    """Return float64 copies of ``centers`` (N, 3) and ``radii`` (N,), or raise ValueError naming the problem.
+
+    Both may be NumPy arrays, nested sequences, or warp arrays on any device (``vec3``/``vec3d`` centres, float32
+    or float64 radii), which are copied to the host once.
+    """
+    c = _as_float("centers", centers, "an (N, 3) array")
+    r = _as_float("radii", radii, "an (N,) array or one number")
     if c.ndim != 2 or c.shape[1] != 3:
         raise ValueError(f"centers: expected shape (N, 3), got {c.shape}")
     if r.ndim == 0:
@@ -82,8 +186,53 @@ def check_particles(centers, radii) -> tuple[np.ndarray, np.ndarray]:
     return c, r
 
 
+def check_positions(name: str, positions, n: int) -> np.ndarray:
+    """Finite float64 positions of shape (n, 3) (NumPy, sequences, or a warp ``vec3`` array on any device)."""
+    x = _as_float(name, positions, f"an ({n}, 3) array")
+    if x.shape != (n, 3):
+        raise ValueError(f"{name}: expected shape ({n}, 3), one row per particle of the last update, got {x.shape}")
+    if n and not np.isfinite(x).all():
+        k = _first_bad(~np.isfinite(x))
+        raise ValueError(f"{name}: non-finite value at index {k}: {x[k].tolist()}")
+    return x
+
+
+def check_mask(name: str, mask, n: int) -> np.ndarray:
+    """A particle mask of shape (n,), as int32 0/1: booleans or numbers (nonzero is on), never strings."""
+    m = np.asarray(host_array(mask))
+    if m.dtype.kind not in "biuf":
+        raise TypeError(f"{name}: expected booleans or numbers, shape ({n},), got dtype {m.dtype}")
+    if m.shape != (n,):
+        raise ValueError(f"{name}: expected shape ({n},), got {m.shape}")
+    if m.dtype.kind == "f" and n and not np.isfinite(m).all():
+        k = int(np.flatnonzero(~np.isfinite(m))[0])
+        raise ValueError(f"{name}: non-finite value at index {k}: {m[k]!r}")
+    return (m != 0).astype(np.int32)
+
+
+def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
+    """One finite real number > 0 (>= 0 with ``allow_zero``); strings, None and booleans are refused by type."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name}: expected a number, got {type(value).__name__} {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        need = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name}: must be finite and {need}, got {value!r}")
+    return v
+
+
+def check_integer(name: str, value, *, minimum: int = 0) -> int:
+    """One integer >= ``minimum`` (Python or NumPy integers; not booleans, floats or strings)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: expected an integer >= {minimum}, got {type(value).__name__} {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def check_pressure(pressure) -> np.ndarray:
     """Pressure as float64 (Px, Py, Pz) [Pa]: one number for all axes, or one per axis."""
+    pressure = host_array(pressure)
     p = np.asarray(pressure, dtype=object)
     if p.shape == (1,):
         pressure = p[0]
@@ -92,6 +241,9 @@ def check_pressure(pressure) -> np.ndarray:
 
 def check_vec3(name: str, value, *, positive: bool = False) -> np.ndarray:
     """Three finite float64 values (a scalar is repeated), > 0 where ``positive``."""
+    value = host_array(value)
+    if isinstance(value, (str, bytes)) or value is None:
+        raise TypeError(f"{name}: expected a number or 3 numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as e:
@@ -120,7 +272,7 @@ def check_box(lower, upper) -> tuple[np.ndarray, np.ndarray]:
 
 def check_shape(shape) -> tuple[int, int, int]:
     """Three integers >= 1 (cells along x, y, z)."""
-    sh = np.asarray(shape).reshape(-1)
+    sh = np.asarray(host_array(shape)).reshape(-1)
     if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
         raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {shape!r}")
     if np.any(sh < 1):
@@ -129,24 +281,43 @@ def check_shape(shape) -> tuple[int, int, int]:
     return tuple(int(x) for x in sh)
 
 
-def check_subdivisions(subdivisions) -> int:
-    """An integer >= 1."""
-    if isinstance(subdivisions, bool) or not isinstance(subdivisions, (int, np.integer)) or subdivisions < 1:
-        raise ValueError(f"subdivisions: expected an integer >= 1, got {subdivisions!r}")
-    return int(subdivisions)
+def check_subdivisions(subdivisions) -> tuple[int, int, int]:
+    """Sub-cells per cell edge: an integer >= 1 for every axis, or three (along x, y, z)."""
+    value = host_array(subdivisions)
+    if isinstance(value, (tuple, list, np.ndarray)):
+        items = list(np.asarray(value, dtype=object).reshape(-1))
+        if len(items) == 3 and all(
+            not isinstance(x, bool) and isinstance(x, (int, np.integer)) and x >= 1 for x in items
+        ):
+            return tuple(int(x) for x in items)
+    elif not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= 1:
+        return (int(value),) * 3
+    raise ValueError(f"subdivisions: expected an integer >= 1, or three (x, y, z), got {subdivisions!r}")
 
 
-def check_budget(need: int, max_bytes, what: str, remedy: str) -> None:
+def check_max_bytes(max_bytes) -> float:
+    """A memory budget [bytes]: a number >= 0 (``math.inf`` for none). NaN, negatives and non-numbers raise."""
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, numbers.Real):
+        raise TypeError(f"max_bytes: expected a number of bytes, got {type(max_bytes).__name__} {max_bytes!r}")
+    if math.isnan(max_bytes) or max_bytes < 0:
+        raise ValueError(f"max_bytes: expected a number of bytes >= 0 (math.inf for no budget), got {max_bytes!r}")
+    return max_bytes
+
+
+def check_budget(need: float, max_bytes, what: str, remedy: str) -> None:
     """Raise ValueError, before anything is allocated, when ``need`` bytes exceed ``max_bytes``.
 
     Args:
-        need: Bytes the call would allocate.
-        max_bytes: The caller's budget [bytes].
+        need: Bytes the call would allocate (a float: inf when the count itself overflows).
+        max_bytes: The caller's budget [bytes], validated here.
         what: The start of the message: the argument to blame and what needs ``need`` bytes.
         remedy: How to need fewer.
     """
-    if need > max_bytes:
-        raise ValueError(f"{what}, over the budget of {int(max_bytes):,} bytes ({remedy})")
+    max_bytes = check_max_bytes(max_bytes)
+    if not (need <= max_bytes):
+        raise ValueError(
+            f"{what}, over the budget of max_bytes = {format_bytes(max_bytes)} (raise max_bytes, or {remedy})"
+        )
 
 
 def lamp_rotation(rotation, *, name: str = "rotation") -> np.ndarray:
@@ -188,3 +359,68 @@ def lamp_rotation(rotation, *, name: str = "rotation") -> np.ndarray:
         return np.eye(3)
     u, _, vt = np.linalg.svd(r)
     return u @ vt
+
+
+def check_grid_cells(name: str, counts, max_bytes, bytes_per_cell: int) -> np.ndarray:
+    """Lamp-grid cell counts (3, 2), checked in float64 before any integer conversion: the budget, and at most
+    :data:`EXACT_CELLS` cells per grid so that the forces sum exactly.
+
+    Args:
+        name: The argument that set the counts (``cell_size``, ``cells_per_diameter``, ``counts``).
+        counts: Cells of each grid along (u, v), shape (3, 2), as floats (may be huge or inf).
+        max_bytes: Budget for the per-cell arrays [bytes].
+        bytes_per_cell: Device bytes per cell.
+
+    Returns:
+        The counts as int64, shape (3, 2).
+    """
+    c = np.asarray(counts, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        per_grid = c[:, 0] * c[:, 1]
+        cells = float(np.sum(per_grid))
+        need = cells * bytes_per_cell
+    if math.isfinite(need):
+        what = f"{name}: the grid's {int(cells):,} cells need {format_bytes(need)}"
+    else:
+        what = f"{name}: the grid's cell count overflows float64"
+    check_budget(need, max_bytes, what, "use larger cells")
+    if np.any(per_grid > EXACT_CELLS):
+        a = int(np.flatnonzero(per_grid > EXACT_CELLS)[0])
+        raise ValueError(
+            f"{name}: grid {a} has {int(per_grid[a]):,} cells, over the 2**27 that keep every sum of P A count exact "
+            "in float64; use larger cells"
+        )
+    return c.astype(np.int64)
+
+
+def check_force_range(pressure, cell_area, cells_per_grid, *, float32: bool = False) -> None:
+    """Refuse a force per cell ``P_a A_a`` [N] that leaves the range where the forces are exact.
+
+    Args:
+        pressure: P_a per axis [Pa], shape (3,), finite.
+        cell_area: A_a, the cell area of each grid [m^2], shape (3,).
+        cells_per_grid: Cells of each grid, shape (3,): the largest count a particle can have on that axis.
+        float32: The forces go to a float32 array, whose range must hold P_a A_a times the largest count.
+    """
+    p = np.asarray(pressure, dtype=np.float64)
+    area = np.asarray(cell_area, dtype=np.float64)
+    with np.errstate(over="ignore"):
+        pa = np.abs(p * area)
+    for a in range(3):
+        if p[a] != 0.0 and area[a] == 0.0:
+            raise ValueError(f"pressure: the cell area of grid {a} underflows to 0 m^2, so P A would vanish")
+        if not np.isfinite(pa[a]) or pa[a] > _MAX_PRESSURE_AREA:
+            raise ValueError(
+                f"pressure: P times the cell area of grid {a} is {pa[a]:.3g} N, over the {_MAX_PRESSURE_AREA:.3g} N "
+                "that keeps the 26-bit rounding and every P A count exact in float64 (check the units)"
+            )
+        if 0.0 < pa[a] < _MIN_PRESSURE_AREA:
+            raise ValueError(
+                f"pressure: P times the cell area of grid {a} is {pa[a]:.3g} N, below the smallest normal float64, "
+                "where the 26-bit rounding is not exact (check the units)"
+            )
+        if float32 and pa[a] * float(cells_per_grid[a]) > _FLOAT32_MAX:
+            raise ValueError(
+                f"pressure: P A up to {pa[a] * float(cells_per_grid[a]):.3g} N on axis {a} overflows the float32 "
+                "force array (check the units)"
+            )

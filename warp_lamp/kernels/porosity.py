@@ -264,50 +264,52 @@ def voxel_mark(
 
 
 @wp.func
-def midpoint_line(
-    bits: wp.array[wp.uint32], sub: wp.vec3i, words: wp.int32, cx: int, cy: int, cz: int, x: int, y: int, z: int
-):
-    """Algorithm 1's line(x, y, z) as printed, ``for i in range(x)`` marking cx+i and cx-i: the run
-    cx-(x-1) .. cx+(x-1) of the row (cy+y, cz+z), nothing for x = 0; clipped to the sub-grid."""
-    j = cy + y
-    k = cz + z
-    if x < 1 or j < 0 or j >= sub[1] or k < 0 or k >= sub[2]:
-        return
-    i0 = wp.max(cx - x + 1, 0)
-    i1 = wp.min(cx + x - 1, sub[0] - 1)
-    if i0 <= i1:
-        set_run(bits, (k * sub[1] + j) * words, i0, i1)
+def isqrt64(n: wp.int64) -> wp.int64:
+    """floor(sqrt(n)) for n >= 0 (0 for n <= 0): a float64 estimate, corrected in integers."""
+    if n <= wp.int64(0):
+        return wp.int64(0)
+    m = wp.int64(wp.sqrt(wp.float64(n)))
+    while m * m > n:
+        m -= wp.int64(1)
+    while (m + wp.int64(1)) * (m + wp.int64(1)) <= n:
+        m += wp.int64(1)
+    return m
 
 
 @wp.func
-def midpoint_step(x: int, y: int, p4: int) -> wp.vec2i:
-    """One step of the midpoint circle recurrence, the paper's ``if p < 0: p += 2x + 3; else: p += 2(x - y) + 5;
-    y -= 1``, on p4 = 4 p: p starts at 5/4 - r and moves by integers, so 4 p is an exact integer. Returns the
-    new (y, p4); the caller advances x."""
-    if p4 < 0:
-        return wp.vec2i(y, p4 + 4 * (2 * x + 3))
-    return wp.vec2i(y - 1, p4 + 4 * (2 * (x - y) + 5))
+def midpoint_last(r: wp.int64) -> wp.int64:
+    """The last x that the midpoint circle of radius r >= 1 visits (``while y >= x``): the largest x with
+    y(x) >= x, i.e. with (2x - 1)^2 < 4 (r^2 - x^2), or 8x^2 - 4x + 1 < 4r^2."""
+    four_r2 = wp.int64(4) * r * r
+    x = wp.int64((wp.float64(1.0) + wp.sqrt(wp.float64(8) * wp.float64(r) * wp.float64(r))) / wp.float64(4.0))
+    while x > wp.int64(0) and wp.int64(8) * x * x - wp.int64(4) * x + wp.int64(1) >= four_r2:
+        x -= wp.int64(1)
+    while wp.int64(8) * (x + wp.int64(1)) * (x + wp.int64(1)) - wp.int64(4) * (x + wp.int64(1)) + wp.int64(1) < four_r2:
+        x += wp.int64(1)
+    return x
 
 
 @wp.func
-def midpoint_disk(
-    bits: wp.array[wp.uint32], sub: wp.vec3i, words: wp.int32, cx: int, cy: int, cz: int, rad: int, z: int
-):
-    """Algorithm 1's disk(): a midpoint circle of radius rad filled with lines, at heights +z and -z."""
-    x = int(0)
-    yp = wp.vec2i(rad, 5 - 4 * rad)
-    while yp[0] >= x:
-        yr = yp[0]
-        for sz in range(2):
-            zz = z
-            if sz == 1:
-                zz = -z
-            midpoint_line(bits, sub, words, cx, cy, cz, x, yr, zz)
-            midpoint_line(bits, sub, words, cx, cy, cz, yr, x, zz)
-            midpoint_line(bits, sub, words, cx, cy, cz, x, -yr, zz)
-            midpoint_line(bits, sub, words, cx, cy, cz, yr, -x, zz)
-        yp = midpoint_step(x, yr, yp[1])
-        x += 1
+def midpoint_profile(r: wp.int64, last: wp.int64, b: wp.int64) -> wp.int64:
+    """The run half-width + 1 that the paper's ``disk(r)`` draws in its row |dy| = b (-1: none), or, with the
+    sphere's radius, the radius of the widest disk its outer loop draws at height |dz| = b.
+
+    The midpoint recurrence with p = 5/4 - r keeps p = (x+1)^2 + (y-1/2)^2 - r^2 exactly (4p is odd, never 0),
+    so while y >= x its y is y(x) = max{y : (2y-1)^2 < 4(r^2 - x^2)} (y steps by at most 1 there). ``line(x, y)``
+    and ``line(y, x)`` then give row b the half-width y(b) - 1 for b <= last, and max{x <= last : y(x) = b} - 1
+    beyond, where max{x : y(x) >= b} is the largest x with 4x^2 < 4r^2 - (2b-1)^2. Both grow with r, so the widest
+    disk of a height covers the others. ``tests/test_porosity.py`` checks this against the literal recurrence.
+    """
+    if r < wp.int64(1) or b > r:
+        return wp.int64(-1)
+    if b <= last:
+        m = wp.int64(4) * (r * r - b * b)
+        return (isqrt64(m - wp.int64(1)) + wp.int64(1)) / wp.int64(2)
+    q = wp.int64(2) * b - wp.int64(1)
+    m = wp.int64(4) * r * r - q * q
+    if m <= wp.int64(0):
+        return wp.int64(-1)
+    return wp.min(isqrt64(m - wp.int64(1)) / wp.int64(2), last)
 
 
 @wp.kernel
@@ -319,15 +321,71 @@ def midpoint_mark(
     # outputs
     bits: wp.array[wp.uint32],
 ):
-    """Algorithm 1 (traversal sphere), one thread per sphere, on sphere centres and radii in sub-cell units."""
+    """Algorithm 1 (traversal sphere), one thread per sphere, on sphere centres and radii in sub-cell units.
+
+    Marks exactly the sub-cells of the paper's nested midpoint circles (``disk`` of ``line`` runs), evaluated
+    row by row in closed form (:func:`midpoint_profile`) over the rows that lie in the sub-grid, so that a
+    sphere far larger than the box costs only the box's rows.
+    """
     c = centers[wp.tid()]
-    z = int(0)
-    yp = wp.vec2i(radii[wp.tid()], 5 - 4 * radii[wp.tid()])
-    while yp[0] >= z:
-        midpoint_disk(bits, sub, words, c[0], c[1], c[2], yp[0], z)
-        midpoint_disk(bits, sub, words, c[0], c[1], c[2], z, yp[0])
-        yp = midpoint_step(z, yp[0], yp[1])
-        z += 1
+    r = wp.int64(radii[wp.tid()])
+    cx = wp.int64(c[0])
+    cy = wp.int64(c[1])
+    cz = wp.int64(c[2])
+    last = midpoint_last(r)
+    z0 = wp.max(-r, -cz)
+    z1 = wp.min(r, wp.int64(sub[2]) - wp.int64(1) - cz)
+    for dz32 in range(wp.int32(z0), wp.int32(z1) + 1):
+        dz = wp.int64(dz32)
+        rho = midpoint_profile(r, last, wp.abs(dz))
+        if rho < wp.int64(1):
+            continue
+        last_rho = midpoint_last(rho)
+        y0 = wp.max(-rho, -cy)
+        y1 = wp.min(rho, wp.int64(sub[1]) - wp.int64(1) - cy)
+        if y0 > y1:
+            continue
+        # Rows cy +- b for b = |dy| over the box's rows; the profile is followed incrementally along b (it only
+        # falls), from one square root at the first b of each branch.
+        b_lo = wp.int64(0)
+        if y0 > wp.int64(0):
+            b_lo = y0
+        elif y1 < wp.int64(0):
+            b_lo = -y1
+        b_hi = wp.max(-y0, y1)
+        k = wp.int32(cz + dz)
+        y = wp.int64(-1)
+        x = wp.int64(-1)
+        four_rho2 = wp.int64(4) * rho * rho
+        for b32 in range(wp.int32(b_lo), wp.int32(b_hi) + 1):
+            b = wp.int64(b32)
+            width = wp.int64(-1)
+            if b <= last_rho:
+                if y < wp.int64(0):
+                    y = midpoint_profile(rho, last_rho, b)
+                q = wp.int64(2) * y - wp.int64(1)
+                while q * q >= four_rho2 - wp.int64(4) * b * b:
+                    y -= wp.int64(1)
+                    q = wp.int64(2) * y - wp.int64(1)
+                width = y
+            else:
+                if x < wp.int64(0):
+                    x = midpoint_profile(rho, last_rho, b)
+                q = wp.int64(2) * b - wp.int64(1)
+                while x >= wp.int64(0) and wp.int64(4) * x * x >= four_rho2 - q * q:
+                    x -= wp.int64(1)
+                width = wp.min(x, last_rho)
+            half = width - wp.int64(1)
+            if half < wp.int64(0):
+                continue
+            i0 = wp.int32(wp.max(cx - half, wp.int64(0)))
+            i1 = wp.int32(wp.min(cx + half, wp.int64(sub[0]) - wp.int64(1)))
+            if i0 > i1:
+                continue
+            if b <= y1:
+                set_run(bits, (k * sub[1] + wp.int32(cy + b)) * words, i0, i1)
+            if b > wp.int64(0) and -b >= y0:
+                set_run(bits, (k * sub[1] + wp.int32(cy - b)) * words, i0, i1)
 
 
 @wp.kernel
@@ -361,7 +419,9 @@ def midpoint_grid_mark(
                 dx = i - c[0]
                 dy = j - c[1]
                 dz = k - c[2]
-                if dx * dx + dy * dy + dz * dz - radii[n] * radii[n] < 0:
+                rn = wp.int64(radii[n])
+                d2 = wp.int64(dx) * wp.int64(dx) + wp.int64(dy) * wp.int64(dy) + wp.int64(dz) * wp.int64(dz)
+                if d2 - rn * rn < wp.int64(0):
                     word = word | (wp.uint32(1) << wp.uint32(b))
     bits[t] = word
 
@@ -373,13 +433,14 @@ def bitmap_count(
     words: wp.int32,
     s: wp.vec3i,
     # outputs
-    counts: wp.array3d[wp.int32],
+    counts: wp.array3d[wp.int64],
 ):
-    """One thread per (cell i, cell j, sub-row k): popcount of the cell's x-range over its s_y sub-rows."""
+    """One thread per (cell i, cell j, sub-row k): popcount of the cell's x-range over its s_y sub-rows, added to
+    the cell's int64 count (a cell may hold more than 2**31 sub-cells)."""
     ci, cj, k = wp.tid()
     i0 = ci * s[0]
     i1 = i0 + s[0] - 1
-    total = int(0)
+    total = wp.int64(0)
     for jj in range(cj * s[1], cj * s[1] + s[1]):
         row = (k * sub[1] + jj) * words
         for w in range(i0 >> 5, (i1 >> 5) + 1):
@@ -388,6 +449,6 @@ def bitmap_count(
             mask = FULL_WORD
             if hi - lo < 31:
                 mask = ((wp.uint32(1) << wp.uint32(hi - lo + 1)) - wp.uint32(1)) << wp.uint32(lo)
-            total += wp.int32(wp.bit_count(bits[row + w] & mask))
-    if total > 0:
+            total += wp.int64(wp.bit_count(bits[row + w] & mask))
+    if total > wp.int64(0):
         wp.atomic_add(counts, ci, cj, k / s[2], total)

@@ -131,6 +131,18 @@ def _midpoint_algorithm(rad, n_subcells: int) -> int:
     return 2 if work_1 > work_2 else 1
 
 
+def _reference_subdivisions(h, subdivisions, method) -> tuple[int, int, int]:
+    """Sub-cells per cell edge along x, y, z. Midpoint with one integer s: s along the shortest cell edge and
+    sub-cells of that edge on the others (they must fit whole, as :func:`warp_lamp.porosity` requires)."""
+    if np.ndim(subdivisions):
+        return tuple(int(x) for x in subdivisions)
+    s = int(subdivisions)
+    if method != "midpoint":
+        return (s, s, s)
+    edge = min(float(x) for x in h) / s
+    return tuple(round(float(x) / edge) for x in h)
+
+
 def porosity_reference(centers, radii, lower, upper, shape, *, method="voxel", subdivisions=8, midpoint_algorithm=None):
     """Porosity by brute force in float64, per method, as :func:`warp_lamp.porosity` defines it."""
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
@@ -160,9 +172,9 @@ def porosity_reference(centers, radii, lower, upper, shape, *, method="voxel", s
                 v = np.prod(np.maximum(np.minimum(cell_lo + h, r[k]) - np.maximum(cell_lo, -r[k]), 0.0), axis=-1)
             solid[first[0] : last[0] + 1, first[1] : last[1] + 1, first[2] : last[2] + 1] += v
         return 1.0 - solid / np.prod(h)
-    s = int(subdivisions)
-    sub = tuple(x * s for x in shape)
-    hs = h / s
+    s = _reference_subdivisions(h, subdivisions, method)
+    sub = tuple(x * k for x, k in zip(shape, s, strict=True))
+    hs = h / np.asarray(s)
     occupied = np.zeros(sub, dtype=bool)
     if method == "voxel":
         axes = [(np.arange(sub[d]) + 0.5) * hs[d] for d in range(3)]
@@ -190,5 +202,5 @@ def porosity_reference(centers, radii, lower, upper, shape, *, method="voxel", s
             for k in range(len(mr)):
                 d = grid - mc[k]
                 occupied |= np.einsum("...i,...i->...", d, d) - int(mr[k]) ** 2 < 0
-    counts = occupied.reshape(shape[0], s, shape[1], s, shape[2], s).sum(axis=(1, 3, 5))
-    return 1.0 - counts / float(s**3)
+    counts = occupied.reshape(shape[0], s[0], shape[1], s[1], shape[2], s[2]).sum(axis=(1, 3, 5))
+    return 1.0 - counts / float(s[0] * s[1] * s[2])
