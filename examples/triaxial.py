@@ -389,7 +389,11 @@ class TriaxialTest:
     def capture(self, *, lamp: bool = True):
         """One block of cycles (n_u cycles, or 2 n_u when n_u is odd: the slot buffers swap by parity) in one CUDA
         graph: frame copy, the lamp's update on its cycle, contacts, platens, integration, platen control."""
-        return self.dem.capture(lambda: self._block(lamp=lamp), self.block)
+        ticks = iter(range(self.block))
+        # dem.capture records its function once per cycle, so the graph holds one step per call, not a block.
+        return self.dem.capture(
+            lambda: self.step(lamp_update=next(ticks) % self.update_every == 0, lamp=lamp), self.block
+        )
 
     def advance(self, cycles: int) -> None:
         """Run whole blocks (replays of the captured block on CUDA) for at least ``cycles`` cycles."""

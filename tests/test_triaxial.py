@@ -119,3 +119,17 @@ def test_deviator_stress_rises_with_axial_strain(device):
 
 if __name__ == "__main__":
     pytest.main([__file__, "-v"])
+
+
+def test_captured_block_records_one_block_of_cycles(device, monkeypatch):
+    """The graph a triaxial test records holds exactly one block of cycles (n_u of them, the lamp updated on the
+    first), the count the cycle counter advances by per replay: recorded here by calling what capture would
+    record, on any device."""
+    tx = load_example("triaxial")
+    test = tx.TriaxialTest(PARTICLES, sigma3=SIGMA_3, inertial_number=2e-3, check_every=100, device=device)
+    calls = []
+    monkeypatch.setattr(test, "step", lambda **kw: calls.append(kw["lamp_update"]))
+    monkeypatch.setattr(test.dem, "capture", lambda fn, cycles: [fn() for _ in range(cycles)])
+    test.capture()
+    assert len(calls) == test.block
+    assert [k for k, upd in enumerate(calls) if upd] == list(range(0, test.block, test.update_every))

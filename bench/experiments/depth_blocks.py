@@ -1,5 +1,5 @@
 """Issue 11 A/B: the v4 depth pass (one thread per sphere, row filter) against shared rows (``split``), a work
-order sorted by cell (``order``) and the coarse depth buffer (``culling``), one run, one device.
+order sorted by cell (``order``), one run, one device (the coarse depth buffer, ``culling``, was removed in v5f).
 
 Every variant must reproduce the v4 keys and counts bitwise (checked); times are CUDA-event medians of captured
 graph replays: "replay" updates a static body (warm owners), "moving" alternates two position sets 1% of a radius
@@ -37,18 +37,14 @@ def scenes(quick):
 
 
 def variants(n, device):
-    yield "v4", {"split": 0, "order": False, "culling": False}
-    yield "s1", {"split": 1, "order": False, "culling": False}
-    yield "s1 cull", {"split": 1, "order": False, "culling": True}
-    yield "s1 sorted", {"split": 1, "order": True, "culling": False}
-    yield "s1 sorted cull", {"split": 1, "order": True, "culling": True}
+    yield "v4", {"split": 0, "order": False}
+    yield "s1", {"split": 1, "order": False}
+    yield "s1 sorted", {"split": 1, "order": True}
     if n < 200_000:
         for s in (8, 16):
-            yield f"s{s}", {"split": s, "order": False, "culling": False}
-            yield f"s{s} cull", {"split": s, "order": False, "culling": True}
+            yield f"s{s}", {"split": s, "order": False}
     else:
-        yield "s2 sorted", {"split": 2, "order": True, "culling": False}
-        yield "s2 sorted cull", {"split": 2, "order": True, "culling": True}
+        yield "s2 sorted", {"split": 2, "order": True}
     yield "auto", {}
 
 

@@ -1,7 +1,7 @@
 """Quick GPU iteration: the target rows only (lattice, cell 0.25, criterion 1), for kernel work between full runs.
 
 python bench/experiments/gpu_iter.py 100 200          # the default lamp
-python bench/experiments/gpu_iter.py --v4 100         # one thread per sphere, no culling (the v4 pass)
+python bench/experiments/gpu_iter.py --v4 100         # one thread per sphere (the v4 pass)
 """
 
 import json
@@ -17,7 +17,7 @@ from warp_lamp.scenes import scene_lattice_box
 wp.config.log_level = wp.LOG_WARNING
 
 dev = wp.get_device("cuda:0")
-options = {"split": 0, "order": False, "culling": False} if "--v4" in sys.argv else {}
+options = {"split": 0, "order": False} if "--v4" in sys.argv else {}
 sizes = [int(x) for x in sys.argv[1:] if x != "--v4"] or [100, 200]
 rows = []
 for m in sizes:

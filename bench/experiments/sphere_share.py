@@ -34,7 +34,7 @@ def main():
     device = wp.get_device("cuda:0")
     rows = []
     for k in args.cells:
-        for depth_pass, options in (("v4", {"split": 0, "order": False, "culling": False}), ("auto", {})):
+        for depth_pass, options in (("v4", {"split": 0, "order": False}), ("auto", {})):
             test = st.SphereTest(k, device=device)
             test.lamp = wl.ShiningLamp(test.lamp.grid, device=device, **options)
             test.lamp.reserve(test.n)
