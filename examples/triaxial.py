@@ -170,21 +170,38 @@ class FollowLamp:
     centred; a particle that still pokes out is counted in ``diagnostics().outside`` (checked by the tests).
     """
 
-    def __init__(self, positions, radii, *, cells_per_diameter: float, lamps=LATERAL, device=None):
+    def __init__(
+        self,
+        positions,
+        radii,
+        *,
+        cells_per_diameter: float,
+        lamps=LATERAL,
+        surfaces: str = "first",
+        probe_radius: float | None = None,
+        device=None,
+    ):
         """Args:
         positions: Particle centres in the lamp's frame [m], shape (N, 3).
         radii: Particle radii [m], shape (N,).
         cells_per_diameter: Cells per mean particle diameter.
         lamps: Lamps that are on.
+        surfaces: ``"first"`` (the memo's lamp) or ``"all"`` (every wetted surface, ``probe_radius`` [m]).
+        probe_radius: The wetted mode's probe radius [m].
         device: Warp device.
         """
         d = 2.0 * float(np.mean(radii))
         lo = np.min(positions - radii[:, None], axis=0)
         hi = np.max(positions + radii[:, None], axis=0)
-        pad = np.full(3, d)
+        cell = d / float(cells_per_diameter)
+        # The wetted mode needs the probe radius plus a cell of fluid around the body on every side.
+        pad = np.full(3, d + (probe_radius + cell if surfaces == "all" else 0.0))
         pad[:2] += 0.5 * BULGE * (hi[:2] - lo[:2])
-        self.grid = wl.LampGrid(lo - pad, hi + pad, d / float(cells_per_diameter))
-        self.lamp = wl.ShiningLamp(self.grid, lamps=lamps, follow=True, device=device)
+        self.grid = wl.LampGrid(lo - pad, hi + pad, cell)
+        self.surfaces = surfaces
+        self.lamps = set(lamps)
+        options = {"surfaces": "all", "probe_radius": probe_radius} if surfaces == "all" else {}
+        self.lamp = wl.ShiningLamp(self.grid, lamps=lamps, follow=True, device=device, **options)
         self.lamp.reserve(len(radii))
         self.max_outside = 0
 
@@ -201,6 +218,15 @@ class FollowLamp:
         whose forces are in place; records the largest count of particles outside the grid."""
         diag = self.lamp.diagnostics()
         self.max_outside = max(self.max_outside, diag.outside)
+        if self.surfaces == "all":
+            # Each lit ray meets the wetted boundary first where the memo's lamp meets the body: the rays with a
+            # crossing are the lit area of both lamps of their axis (the inner crossings cancel along the ray).
+            return {
+                name: int(np.count_nonzero(diag.crossings[k // 2])) * float(self.grid.cell_area[k // 2])
+                if name in self.lamps
+                else 0.0
+                for k, name in enumerate(wl.LAMPS)
+            }
         return {name: diag.lit[name] * float(self.grid.cell_area[k // 2]) for k, name in enumerate(wl.LAMPS)}
 
 
@@ -268,6 +294,8 @@ class TriaxialTest:
         damping: float = LOCAL_DAMPING,
         viscous: float = VISCOUS,
         platen_friction: float = MU,
+        surfaces: str = "first",
+        probe_radius: float = 0.5,
         seed: int = 0,
         device=None,
         scene=None,
@@ -284,6 +312,8 @@ class TriaxialTest:
         damping: Local damping coefficient while consolidating (0 in the compression).
         viscous: Critical damping ratio of the contact dashpots, both phases.
         platen_friction: Friction coefficient between the balls and the platens.
+        surfaces: The lamp's mode: ``"first"`` (the memo's) or ``"all"`` (every wetted surface).
+        probe_radius: ``surfaces="all"``: the probe radius, in mean particle radii.
         seed: Packing seed.
         device: Warp device.
         scene: A ready specimen (a cylinder about the z axis, centred at the origin) instead of generating one.
@@ -319,7 +349,16 @@ class TriaxialTest:
         self.target = wp.zeros(2, dtype=wp.float64, device=d)
         self.pressure = wp.array([self.sigma3], dtype=wp.float32, device=d)
         self.lamp_force = wp.zeros(self.n, dtype=wp.vec3, device=d)
-        self.lamp = FollowLamp(s.centers - s.center, r, cells_per_diameter=cells_per_diameter, device=d)
+        self.surfaces = surfaces
+        self.probe_radius = float(probe_radius) * 0.5 * self.d_mean if surfaces == "all" else None
+        self.lamp = FollowLamp(
+            s.centers - s.center,
+            r,
+            cells_per_diameter=cells_per_diameter,
+            surfaces=surfaces,
+            probe_radius=self.probe_radius,
+            device=d,
+        )
         self.cells_per_diameter = float(cells_per_diameter)
         self.slabs = max(1, round(h / (2.0 * self.d_mean)))
         self.sectors = max(8, round(np.pi * DIAMETER / (2.0 * self.d_mean)))
@@ -468,6 +507,7 @@ class TriaxialTest:
             "sigma_lat_x": self.sigma3 * lit_x / (2.0 * s_x),
             "sigma_lat_y": self.sigma3 * lit_y / (2.0 * s_y),
             "sigma_lat_net": float(np.abs(lf[:, 0]).sum() + np.abs(lf[:, 1]).sum()) / (2.0 * s_x + 2.0 * s_y),
+            "loaded": int(np.count_nonzero(np.abs(lf).sum(axis=1))),
             "silhouette_x": s_x,
             "silhouette_y": s_y,
             "sphere_stress": sphere.tolist(),
@@ -602,6 +642,9 @@ class TriaxialTest:
             "max_outside": self.lamp.max_outside,
             "compression_cycles": int(c[-1]["cycle"] - c[0]["cycle"]),
             "max_bulge": float(max(np.max(s["radius_profile"]) for s in c) / np.mean(c[0]["radius_profile"]) - 1),
+            "surfaces": self.surfaces,
+            "probe_radius_m": self.probe_radius,
+            "loaded_mean": float(np.mean([s["loaded"] for s in c])),
         }
 
 
@@ -667,6 +710,10 @@ def main():
     parser.add_argument("--strain", type=float, default=0.15, help="final axial strain")
     parser.add_argument("--device", default=None)
     parser.add_argument("--quick", action="store_true", help="2,000 particles, I = 5e-3: minutes on a CPU")
+    parser.add_argument("--surfaces", choices=("first", "all"), default="first", help="the lamp's mode")
+    parser.add_argument(
+        "--probe-radius", type=float, default=0.5, help="--surfaces all: probe radius in mean particle radii"
+    )
     parser.add_argument("--time", action="store_true", help="time a cycle with and without the lamp at the end")
     parser.add_argument("--json", default=None, help="write the summary and the samples as JSON")
     parser.add_argument("--plot", default=None, help="draw the curves to this PNG")
@@ -680,6 +727,8 @@ def main():
         cells_per_diameter=args.cells_per_diameter,
         inertial_number=inertial,
         update_every=args.update_every,
+        surfaces=args.surfaces,
+        probe_radius=args.probe_radius,
         device=args.device,
     )
     est = int(np.ceil(args.strain / (test.strain_rate * test.dt)))

@@ -43,7 +43,7 @@ def main():
             t = test.time_cycle(repeats=30)
             # The lamp's update alone, captured, static and moving as in the benchmark.
             with wp.ScopedCapture(device=device) as cap:
-                test.lamp.update(test.pos32, test.radius32)
+                test.lamp.update(test.dem.pos32, test.dem.radius32)
             from warp_lamp.timing import time_median_events
 
             t["update_s"] = time_median_events(lambda c=cap: wp.capture_launch(c.graph), device, repeats=100)
