@@ -658,8 +658,9 @@ def format_modes(result: dict) -> str:
 
 
 def plot_area(ax, result: dict) -> None:
-    """Update time against the specimen's per-particle force error, one curve per device and estimator (the
-    ``area`` section), on a matplotlib axes."""
+    """Update time against the specimen's per-particle force error (the ``area`` section), on a matplotlib axes:
+    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager)."""
+    colours = {}
     for sec in result.get("area") or []:
         keys = []
         for r in sec["rows"]:
@@ -670,13 +671,24 @@ def plot_area(ax, result: dict) -> None:
             pts = [r for r in sec["rows"] if (r["device"], _estimator_name(r)) == (dev, name)]
             err = [100.0 * r["rms"] for r in pts]
             t = [r["update_s"] * 1e3 for r in pts]
-            ax.loglog(err, t, "s--" if name.startswith("area") else "o-", label=f"{dev}, {name}")
-            for r, x, y in zip(pts, err, t, strict=True):
-                ax.annotate(
-                    f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
-                )
-        ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres): force error", fontsize=9)
-    ax.set_xlabel("per-particle force RMS / (P pi rbar^2) [%], against exact visible areas")
-    ax.set_ylabel("update [ms] (replay on CUDA, eager on CPU)")
+            cuda = dev.startswith("cuda")
+            colour = colours.setdefault(name, f"C{len(colours)}")
+            ax.loglog(
+                err,
+                t,
+                ("o" if name.startswith("criterion") else "s") + ("-" if cuda else "--"),
+                color=colour,
+                alpha=1.0 if cuda else 0.45,
+                markersize=4,
+                label=name if cuda else None,
+            )
+            if cuda:
+                for r, x, y in zip(pts, err, t, strict=True):
+                    ax.annotate(
+                        f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
+                    )
+        ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres)", fontsize=9)
+    ax.set_xlabel("per-particle force RMS [%] vs exact visible areas")
+    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=6, loc="upper right")
