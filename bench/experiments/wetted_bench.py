@@ -86,7 +86,7 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
     out = {"scene": scene.name, "particles": n, "rho": rho, "rho_over_d": rho_d, "cell": float(grid.cell[0, 0])}
 
     lamp = wl.ShiningLamp(grid, device=device)
-    lamp.update(pos, rad)
+    lamp.update(pos, rad, in_frame=True)
     surf = WettedSurface(grid, probe_radius=rho, device=device)
     surf.update(pos, rad)
     d = surf.diagnostics()
@@ -101,8 +101,8 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
         force_sum=(d.counts.sum(axis=0)).tolist(),
     )
     if device.is_cuda:
-        first = capture(device, lambda: lamp.update(pos, rad))
-        first_moving = capture(device, lambda: (lamp.update(moved, rad), lamp.update(pos, rad)))
+        first = capture(device, lambda: lamp.update(pos, rad, in_frame=True))
+        first_moving = capture(device, lambda: (lamp.update(moved, rad, in_frame=True), lamp.update(pos, rad, in_frame=True)))
         out["first_replay_s"] = gpu_time(lambda: wp.capture_launch(first), device, repeats)
         out["first_moving_s"] = gpu_time(lambda: wp.capture_launch(first_moving), device, repeats) / 2
         graphs = {s: capture(device, lambda s=s: surf._update(pos, rad, None, stop=s)) for s in surf.STAGES}
