@@ -102,7 +102,9 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
     )
     if device.is_cuda:
         first = capture(device, lambda: lamp.update(pos, rad, in_frame=True))
-        first_moving = capture(device, lambda: (lamp.update(moved, rad, in_frame=True), lamp.update(pos, rad, in_frame=True)))
+        first_moving = capture(
+            device, lambda: (lamp.update(moved, rad, in_frame=True), lamp.update(pos, rad, in_frame=True))
+        )
         out["first_replay_s"] = gpu_time(lambda: wp.capture_launch(first), device, repeats)
         out["first_moving_s"] = gpu_time(lambda: wp.capture_launch(first_moving), device, repeats) / 2
         graphs = {s: capture(device, lambda s=s: surf._update(pos, rad, None, stop=s)) for s in surf.STAGES}
@@ -115,7 +117,7 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
         out["all_replay_s"] = prev
         out["all_moving_s"] = gpu_time(lambda: wp.capture_launch(moving), device, repeats) / 2
     else:
-        out["first_eager_s"] = gpu_time(lambda: lamp.update(pos, rad), device, repeats, warmup=1)
+        out["first_eager_s"] = gpu_time(lambda: lamp.update(pos, rad, in_frame=True), device, repeats, warmup=1)
         prev = 0.0
         for s in surf.STAGES:
             t = gpu_time(lambda s=s: surf._update(pos, rad, None, stop=s), device, repeats, warmup=1)
