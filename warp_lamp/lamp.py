@@ -20,10 +20,12 @@ from warp_lamp.validate import (
     check_force_range,
     check_integer,
     check_mask,
+    check_particle_arrays,
     check_particles,
     check_positions,
     check_positive,
     check_vec3,
+    check_warp_array,
     lamp_mask,
     lamp_names,
 )
@@ -433,18 +435,7 @@ class ShiningLamp:
         wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
-        if not isinstance(arr, wp.array):
-            raise TypeError(f"{name}: expected a warp array of {dtype.__name__}, got {type(arr).__name__}")
-        if arr.dtype != dtype:
-            raise TypeError(f"{name}: expected dtype {dtype.__name__}, got {getattr(arr.dtype, '__name__', arr.dtype)}")
-        if arr.ndim != 1:
-            raise ValueError(f"{name}: expected a 1-D array, got shape {arr.shape}")
-        if arr.device != self.device:
-            raise ValueError(f"{name}: on device {arr.device}, the lamp is on {self.device}")
-        if n is not None and arr.shape[0] < n:
-            raise ValueError(f"{name}: has {arr.shape[0]} entries, need {n}")
-        if not arr.is_contiguous:
-            raise ValueError(f"{name}: must be contiguous")
+        check_warp_array(name, arr, dtype, self.device, "the lamp", n)
 
     def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None, *, in_frame=False) -> None:
         """Recompute which particle each cell lights, and each particle's signed counts.
@@ -468,13 +459,9 @@ class ShiningLamp:
             self.n = self.frames[0].n
             self._inputs = self.frames[0]._inputs
             return
-        self._check_array("positions", positions, wp.vec3)
-        n = positions.shape[0]
-        self._check_array("radii", radii, wp.float32, n)
+        n = check_particle_arrays(positions, radii, active, self.device, "the lamp")
         if active is None:
             active = self._no_active
-        else:
-            self._check_array("active", active, wp.int32, n)
         self.reserve(n)
         self.n = n
         particles = lamp_kernels.LampParticles()

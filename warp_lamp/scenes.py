@@ -370,8 +370,16 @@ class CutScene(Scene):
         return scene_lattice_box(**self.block)
 
 
-def _cut_block(name, n_per_axis, remove, cut, *, spacing, jitter, rmin, rmax, seed) -> CutScene:
-    block = dict(n_per_axis=n_per_axis, spacing=spacing, jitter=jitter, rmin=rmin, rmax=rmax, seed=seed)
+def _lattice_spacing(lattice: dict) -> float:
+    """The spacing a cut-block scene's ``**lattice`` keywords give :func:`scene_lattice_box` [m]."""
+    unknown = set(lattice) - {"spacing", "jitter", "rmin", "rmax", "seed"}
+    if unknown:
+        raise TypeError(f"{sorted(unknown)[0]}: not a keyword of scene_lattice_box")
+    return float(lattice.get("spacing", 1.0))
+
+
+def _cut_block(name, n_per_axis, remove, cut, lattice: dict) -> CutScene:
+    block = dict(n_per_axis=n_per_axis, **lattice)
     full = scene_lattice_box(**block)
     n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
     index = np.stack(np.meshgrid(*(np.arange(k) for k in n3), indexing="ij"), axis=-1).reshape(-1, 3)
@@ -394,11 +402,7 @@ def scene_slot_block(
     *,
     width: int = 6,
     depth: int = 8,
-    spacing: float = 1.0,
-    jitter: float = 0.05,
-    rmin: float = 0.4,
-    rmax: float = 0.5,
-    seed: int = 0,
+    **lattice,
 ) -> CutScene:
     """Issue 10's slot block: a jittered cubic block with a slot cut along x into its top face.
 
@@ -412,8 +416,9 @@ def scene_slot_block(
         n_per_axis: Spheres along x, y, z.
         width: Slot width [lattice spacings].
         depth: Slot depth [lattice spacings].
-        spacing, jitter, rmin, rmax, seed: As for :func:`scene_lattice_box`.
+        **lattice: ``spacing``, ``jitter``, ``rmin``, ``rmax``, ``seed``, as for :func:`scene_lattice_box`.
     """
+    spacing = _lattice_spacing(lattice)
     nx, ny, nz = (int(x) for x in np.broadcast_to(np.asarray(n_per_axis), (3,)))
     if not (0 < width < ny - 1 and 0 < depth < nz):
         raise ValueError(f"width, depth: need 0 < width < {ny - 1} and 0 < depth < {nz}, got {width}, {depth}")
@@ -436,35 +441,23 @@ def scene_slot_block(
     def remove(idx):
         return (idx[:, 1] >= j0) & (idx[:, 1] < j1) & (idx[:, 2] >= k0)
 
-    return _cut_block(
-        f"slot block {nx}x{ny}x{nz}, slot {width} x {depth}",
-        (nx, ny, nz),
-        remove,
-        cut,
-        spacing=spacing,
-        jitter=jitter,
-        rmin=rmin,
-        rmax=rmax,
-        seed=seed,
-    )
+    return _cut_block(f"slot block {nx}x{ny}x{nz}, slot {width} x {depth}", (nx, ny, nz), remove, cut, lattice)
 
 
 def scene_cavity_block(
     n_per_axis=16,
     *,
     cavity_radius: float = 3.0,
-    spacing: float = 1.0,
-    jitter: float = 0.05,
-    rmin: float = 0.4,
-    rmax: float = 0.5,
-    seed: int = 0,
+    **lattice,
 ) -> CutScene:
     """A jittered cubic block with a sealed spherical cavity at its centre.
 
     The cavity removes every lattice site within ``cavity_radius`` [m] of the block's centre (unjittered
     positions). ``cut`` holds ``center`` and ``radius``. It is sealed for any probe that cannot pass the
-    lattice's windows (rho above about sqrt(2)/2 spacing - r, i.e. 0.25 at r = 0.45).
+    lattice's windows (rho above about sqrt(2)/2 spacing - r, i.e. 0.25 at r = 0.45). ``**lattice``: as for
+    :func:`scene_slot_block`.
     """
+    spacing = _lattice_spacing(lattice)
     n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
     centre = (n3 - 1) / 2.0
 
@@ -476,11 +469,7 @@ def scene_cavity_block(
         tuple(int(x) for x in n3),
         remove,
         dict(kind="cavity", center=centre * spacing, radius=float(cavity_radius)),
-        spacing=spacing,
-        jitter=jitter,
-        rmin=rmin,
-        rmax=rmax,
-        seed=seed,
+        lattice,
     )
 
 
@@ -488,11 +477,7 @@ def scene_tunnel_block(
     n_per_axis=(20, 16, 16),
     *,
     tunnel_radius: float = 2.5,
-    spacing: float = 1.0,
-    jitter: float = 0.05,
-    rmin: float = 0.4,
-    rmax: float = 0.5,
-    seed: int = 0,
+    **lattice,
 ) -> CutScene:
     """A jittered cubic block with a straight tunnel bored along x through its whole length (open both ends).
 
@@ -500,7 +485,9 @@ def scene_tunnel_block(
     along x (unjittered positions). ``cut`` holds ``axis`` (y, z of the line [m]), ``radius``, ``length`` (the
     block's x extent, n_x spacings) and ``width``, the span in y of the removed sites plus one spacing (the
     free width between the walls' sphere centres minus one diameter, uncertain by about one diameter).
+    ``**lattice``: as for :func:`scene_slot_block`.
     """
+    spacing = _lattice_spacing(lattice)
     n3 = np.broadcast_to(np.asarray(n_per_axis, dtype=np.int64), (3,))
     centre = (n3 - 1) / 2.0
 
@@ -518,14 +505,4 @@ def scene_tunnel_block(
         length=nx * spacing,
         width=float(span * spacing),
     )
-    return _cut_block(
-        f"tunnel block {nx}x{ny}x{nz}, tunnel r = {tunnel_radius:g}",
-        (nx, ny, nz),
-        remove,
-        cut,
-        spacing=spacing,
-        jitter=jitter,
-        rmin=rmin,
-        rmax=rmax,
-        seed=seed,
-    )
+    return _cut_block(f"tunnel block {nx}x{ny}x{nz}, tunnel r = {tunnel_radius:g}", (nx, ny, nz), remove, cut, lattice)

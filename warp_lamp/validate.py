@@ -25,6 +25,7 @@ __all__ = [
     "check_integer",
     "check_mask",
     "check_max_bytes",
+    "check_particle_arrays",
     "check_particles",
     "check_positions",
     "check_positive",
@@ -32,6 +33,7 @@ __all__ = [
     "check_shape",
     "check_subdivisions",
     "check_vec3",
+    "check_warp_array",
     "format_bytes",
     "host_array",
     "lamp_mask",
@@ -424,3 +426,44 @@ def check_force_range(pressure, cell_area, cells_per_grid, *, float32: bool = Fa
                 f"pressure: P A up to {pa[a] * float(cells_per_grid[a]):.3g} N on axis {a} overflows the float32 "
                 "force array (check the units)"
             )
+
+
+def check_warp_array(name: str, arr, dtype, device, owner: str, n: int | None = None) -> None:
+    """Refuse, naming ``name``, what a capture-safe device path cannot take: not a warp array, another dtype,
+    not 1-D or contiguous, on another device than ``owner``'s, or shorter than ``n``.
+
+    Args:
+        name: The argument.
+        arr: The array.
+        dtype: The warp dtype it must have.
+        device: The device it must live on.
+        owner: Who needs it, for the message ("the lamp").
+        n: Fewest entries, or None.
+    """
+    import warp as wp
+
+    if not isinstance(arr, wp.array):
+        raise TypeError(f"{name}: expected a warp array of {dtype.__name__}, got {type(arr).__name__}")
+    if arr.dtype != dtype:
+        raise TypeError(f"{name}: expected dtype {dtype.__name__}, got {getattr(arr.dtype, '__name__', arr.dtype)}")
+    if arr.ndim != 1:
+        raise ValueError(f"{name}: expected a 1-D array, got shape {arr.shape}")
+    if arr.device != device:
+        raise ValueError(f"{name}: on device {arr.device}, {owner} is on {device}")
+    if n is not None and arr.shape[0] < n:
+        raise ValueError(f"{name}: has {arr.shape[0]} entries, need {n}")
+    if not arr.is_contiguous:
+        raise ValueError(f"{name}: must be contiguous")
+
+
+def check_particle_arrays(positions, radii, active, device, owner: str) -> int:
+    """The device arrays of an update (:func:`check_warp_array` each): positions ``vec3``, radii ``float32`` and an
+    optional ``int32`` mask, as many as the positions, on ``owner``'s device. Returns N."""
+    import warp as wp
+
+    check_warp_array("positions", positions, wp.vec3, device, owner)
+    n = positions.shape[0]
+    check_warp_array("radii", radii, wp.float32, device, owner, n)
+    if active is not None:
+        check_warp_array("active", active, wp.int32, device, owner, n)
+    return n

@@ -33,7 +33,14 @@ import warp as wp
 from warp_lamp.frames import pressure_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import wetted as K
-from warp_lamp.validate import DEFAULT_MAX_BYTES, LAMPS, check_budget, lamp_mask
+from warp_lamp.validate import (
+    DEFAULT_MAX_BYTES,
+    LAMPS,
+    check_budget,
+    check_particle_arrays,
+    check_warp_array,
+    lamp_mask,
+)
 
 __all__ = [
     "WettedDiagnostics",
@@ -401,18 +408,7 @@ class WettedSurface:
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
-        if not isinstance(arr, wp.array):
-            raise TypeError(f"{name}: expected a warp array of {dtype.__name__}, got {type(arr).__name__}")
-        if arr.dtype != dtype:
-            raise TypeError(f"{name}: expected dtype {dtype.__name__}, got {getattr(arr.dtype, '__name__', arr.dtype)}")
-        if arr.ndim != 1:
-            raise ValueError(f"{name}: expected a 1-D array, got shape {arr.shape}")
-        if arr.device != self.device:
-            raise ValueError(f"{name}: on device {arr.device}, the wetted surface is on {self.device}")
-        if n is not None and arr.shape[0] < n:
-            raise ValueError(f"{name}: has {arr.shape[0]} entries, need {n}")
-        if not arr.is_contiguous:
-            raise ValueError(f"{name}: must be contiguous")
+        check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
 
     def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None) -> None:
         """Recompute the fluid region, its crossings, and each particle's signed crossing counts.
@@ -430,13 +426,9 @@ class WettedSurface:
 
     def _update(self, positions, radii, active, stop: str = "cross") -> None:
         last = self.STAGES.index(stop)
-        self._check_array("positions", positions, wp.vec3)
-        n = positions.shape[0]
-        self._check_array("radii", radii, wp.float32, n)
+        n = check_particle_arrays(positions, radii, active, self.device, "the wetted surface")
         if active is None:
             active = self._no_active
-        else:
-            self._check_array("active", active, wp.int32, n)
         self.reserve(n)
         self.n = n
         d = self.device

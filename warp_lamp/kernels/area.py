@@ -53,9 +53,11 @@ vec_cut = wp.types.vector(length=40, dtype=wp.float32)
 
 
 @wp.func
-def sort_cuts(cuts: vec_cut, n: wp.int32) -> vec_cut:
-    """Insertion sort of cuts[0 .. n-1], ascending (n <= 40: fewer compares than anything cleverer)."""
-    for m in range(1, n):
+def sort_cuts(cuts: vec_cut, n: wp.int32, end: wp.float32) -> vec_cut:
+    """cuts[0 .. n-1] and ``end`` as cuts[n], sorted ascending by insertion (n <= 40: fewer compares than anything
+    cleverer); the pieces are then cuts[k] .. cuts[k + 1] for k < n."""
+    cuts[n] = end
+    for m in range(1, n + 1):
         x = cuts[m]
         pos = m
         while pos > 0:
@@ -66,6 +68,12 @@ def sort_cuts(cuts: vec_cut, n: wp.int32) -> vec_cut:
                 break
         cuts[pos] = x
     return cuts
+
+
+@wp.func
+def cut_piece(cuts: vec_cut, k: wp.int32) -> wp.vec3:
+    """Piece k of sorted cuts: (start, end, midpoint)."""
+    return wp.vec3(cuts[k], cuts[k + 1], 0.5 * (cuts[k] + cuts[k + 1]))
 
 
 @wp.func
@@ -173,14 +181,13 @@ def exact_areas(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32,
                 cuts[m] = t_lo
                 cuts[m + 1] = t_hi
                 m += 2
-        cuts[m] = TWO_PI
-        m += 1
-        cuts = sort_cuts(cuts, m)
-        for k in range(m - 1):
-            t1 = cuts[k]
-            t2 = cuts[k + 1]
-            if t2 > t1:
-                mid = 0.5 * (t1 + t2)
+        cuts = sort_cuts(cuts, m, TWO_PI)
+        for k in range(m):
+            piece = cut_piece(cuts, k)
+            if piece[1] > piece[0]:
+                t1 = piece[0]
+                t2 = piece[1]
+                mid = piece[2]
                 outside = int(0)
                 first = count
                 for b in range(n):
@@ -190,10 +197,10 @@ def exact_areas(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32,
                         elif owner[b] < first:
                             first = owner[b]
                 if outside == 0 and first > j:
-                    piece = arc_integral(xj, yj, rj, t1, t2)
-                    area[j] = area[j] + piece
+                    arc = arc_integral(xj, yj, rj, t1, t2)
+                    area[j] = area[j] + arc
                     if first < count:
-                        area[first] = area[first] - piece
+                        area[first] = area[first] - arc
     # Cell edges, counter-clockwise: each piece adds 1/2 (its line's distance from the centre) x length.
     for e in range(4):
         half = float(0.0)
@@ -235,20 +242,16 @@ def exact_areas(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32,
             else:
                 lo[i] = 1.0
                 hi[i] = -1.0
-        cuts[m] = half
-        m += 1
-        cuts = sort_cuts(cuts, m)
-        for k in range(m - 1):
-            t1 = cuts[k]
-            t2 = cuts[k + 1]
-            if t2 > t1:
-                mid = 0.5 * (t1 + t2)
+        cuts = sort_cuts(cuts, m, half)
+        for k in range(m):
+            piece = cut_piece(cuts, k)
+            if piece[1] > piece[0]:
                 first = int(-1)
                 for i in range(count):
-                    if first < 0 and mid >= lo[i] and mid <= hi[i]:
+                    if first < 0 and piece[2] >= lo[i] and piece[2] <= hi[i]:
                         first = i
                 if first >= 0:
-                    area[first] = area[first] + 0.5 * weight * (t2 - t1)
+                    area[first] = area[first] + 0.5 * weight * (piece[1] - piece[0])
     return area
 
 

@@ -215,6 +215,17 @@ def seed_key(
     return out
 
 
+@wp.func
+def clear_particle_counts(c: wp.int32, n: wp.int32, counts: wp.array[wp.int64], diag: wp.array[wp.int32]):
+    """Thread c of a seed launch clears particle c's counts and diagnostic c (the seed replaces two launches)."""
+    if c < n:
+        counts[3 * c] = wp.int64(0)
+        counts[3 * c + 1] = wp.int64(0)
+        counts[3 * c + 2] = wp.int64(0)
+    if c < diag.shape[0]:
+        diag[c] = 0
+
+
 @wp.kernel
 def lamp_seed(
     grid: LampGridParams,
@@ -234,12 +245,7 @@ def lamp_seed(
     launch instead of two.
     """
     c = wp.tid()
-    if c < particles.n:
-        counts[3 * c] = wp.int64(0)
-        counts[3 * c + 1] = wp.int64(0)
-        counts[3 * c + 2] = wp.int64(0)
-    if c < diag.shape[0]:
-        diag[c] = 0
+    clear_particle_counts(c, particles.n, counts, diag)
     if c >= grid.n_cells:
         return
     cell = grid_cell(grid, c)
@@ -280,12 +286,7 @@ def lamp_seed_slots(
     """``lamp_seed`` for samples that keep ``depth_slots`` > 1 keys per lamp: each kept key is re-evaluated, and the
     slots re-sorted (distinct owners give distinct keys; a repeated owner is kept once)."""
     c = wp.tid()
-    if c < particles.n:
-        counts[3 * c] = wp.int64(0)
-        counts[3 * c + 1] = wp.int64(0)
-        counts[3 * c + 2] = wp.int64(0)
-    if c < diag.shape[0]:
-        diag[c] = 0
+    clear_particle_counts(c, particles.n, counts, diag)
     if c >= grid.n_cells:
         return
     cell = grid_cell(grid, c)

@@ -345,6 +345,23 @@ def column_of(box: WetBox, axis: wp.int32, col: wp.int32) -> wp.vec3i:
     return wp.vec3i(word_at(box, w, other, 0), box.nwx * box.n[1], box.n[2])
 
 
+@wp.func
+def word_coords(box: WetBox, idx: wp.int32) -> wp.vec3i:
+    """(word along x, row y, layer z) of word ``idx`` of a bitmap."""
+    jk = idx / box.nwx
+    return wp.vec3i(idx % box.nwx, jk % box.n[1], jk / box.n[1])
+
+
+@wp.func
+def segment_of(box: WetBox, axis: wp.int32, seg: wp.int32, n_seg: wp.int32, t: wp.int32) -> wp.vec4i:
+    """Thread t of a segmented column scan: its column's first word and stride (``column_of``), and its segment's
+    rows [j0, j1)."""
+    col = t / n_seg
+    g = column_of(box, axis, col)
+    j0 = (t - col * n_seg) * seg
+    return wp.vec4i(g[0], g[1], j0, wp.min(j0 + seg, g[2]))
+
+
 @wp.kernel
 def wet_scan_summary(
     box: WetBox,
@@ -369,22 +386,18 @@ def wet_scan_summary(
     if cond[0] == 0:
         return
     t = wp.tid()
-    col = t / n_seg
-    s = t - col * n_seg
-    g = column_of(box, axis, col)
-    m = row_mask(box, col % box.nwx)
-    j0 = s * seg
-    j1 = wp.min(j0 + seg, g[2])
+    g = segment_of(box, axis, seg, n_seg, t)
+    m = row_mask(box, (t / n_seg) % box.nwx)
     through = m
     up = wp.uint32(0)
-    for j in range(j0, j1):
+    for j in range(g[2], g[3]):
         idx = g[0] + j * g[1]
         a = ~blocked[idx] & m
         through = through & a
         up = reach[idx] | (up & a)
     down = wp.uint32(0)
-    j = j1 - 1
-    while j >= j0:
+    j = g[3] - 1
+    while j >= g[2]:
         idx = g[0] + j * g[1]
         down = reach[idx] | (down & ~blocked[idx] & m)
         j -= 1
@@ -442,20 +455,16 @@ def wet_scan_apply(
     if cond[0] == 0:
         return
     t = wp.tid()
-    col = t / n_seg
-    s = t - col * n_seg
-    g = column_of(box, axis, col)
-    m = row_mask(box, col % box.nwx)
-    j0 = s * seg
-    j1 = wp.min(j0 + seg, g[2])
+    g = segment_of(box, axis, seg, n_seg, t)
+    m = row_mask(box, (t / n_seg) % box.nwx)
     c = seg_up[t]
-    for j in range(j0, j1):
+    for j in range(g[2], g[3]):
         idx = g[0] + j * g[1]
         c = reach[idx] | (c & ~blocked[idx] & m)
         reach[idx] = c
     d = seg_down[t]
-    j = j1 - 1
-    while j >= j0:
+    j = g[3] - 1
+    while j >= g[2]:
         idx = g[0] + j * g[1]
         a = ~blocked[idx] & m
         d = fill_runs(a, reach[idx] | (d & a))
@@ -477,10 +486,10 @@ def wet_frontier(
         return
     idx = wp.tid()
     nwx = box.nwx
-    w = idx % nwx
-    jk = idx / nwx
-    j = jk % box.n[1]
-    k = jk / box.n[1]
+    wjk = word_coords(box, idx)
+    w = wjk[0]
+    j = wjk[1]
+    k = wjk[2]
     r = reach[idx]
     cand = ~blocked[idx] & row_mask(box, w) & ~r
     if cand == wp.uint32(0):
@@ -535,11 +544,10 @@ def wet_dilate_y(
     m, so walking m downward only ever widens the x reach of a row.
     """
     idx = wp.tid()
-    nwx = box.nwx
-    w = idx % nwx
-    jk = idx / nwx
-    j = jk % box.n[1]
-    k = jk / box.n[1]
+    wjk = word_coords(box, idx)
+    w = wjk[0]
+    j = wjk[1]
+    k = wjk[2]
     nw = box.n_words
     wz = box.wz
     for m in range(wz + 1):
@@ -575,11 +583,10 @@ def wet_dilate_z(
 ):
     """One thread per word: fluid = OR over |dz| <= wz of plane |dz| at z + dz (outside the box: fluid)."""
     idx = wp.tid()
-    nwx = box.nwx
-    w = idx % nwx
-    jk = idx / nwx
-    j = jk % box.n[1]
-    k = jk / box.n[1]
+    wjk = word_coords(box, idx)
+    w = wjk[0]
+    j = wjk[1]
+    k = wjk[2]
     acc = wp.uint32(0)
     for kk in range(-box.wz, box.wz + 1):
         kz = k + kk
