@@ -410,7 +410,13 @@ def plot(result: dict, path: str) -> None:
     if area:
         from warp_lamp.bench_modes import plot_area
 
-        plot_area(axes[0, -1], result)
+        ax = axes[0, -1]
+        plot_area(ax, result)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(plain)
+            axis.set_minor_formatter(NullFormatter())
+        ax.tick_params(labelsize=8)
     fig.suptitle("Shining lamp: time against error, per device", fontsize=10)
     fig.text(
         0.5,
