@@ -125,7 +125,7 @@ BUGS = [
         MEASURES,
     ),
     Bug(
-        "stress_volume",
+        "stress_transpose",
         "the bench's error measures",
         "warp_lamp/measures.py",
         'return np.einsum("ni,nj->ij", x, np.asarray(forces, dtype=np.float64)) / float(volume)',
