@@ -133,11 +133,19 @@ BUGS = [
         MEASURES,
     ),
     Bug(
-        "cli_force_report",
+        "cli_force_sign",
         "the main job (warp-lamp run)",
         "warp_lamp/cli.py",
         "f = d.counts * pressure_area(args.pressure, grid)",
-        "f = d.counts * pressure_area(args.pressure, grid)[::-1]",
+        "f = -d.counts * pressure_area(args.pressure, grid)",
+        CLI,
+    ),
+    Bug(
+        "cli_stress_volume",
+        "the main job (warp-lamp run)",
+        "warp_lamp/cli.py",
+        "sigma = envelope_stress(scene.centers, f, scene.center, 4.0 / 3.0 * np.pi * R**3)",
+        "sigma = envelope_stress(scene.centers, f, scene.center, 4.0 / 3.0 * np.pi * (2 * R) ** 3)",
         CLI,
     ),
     Bug(
