@@ -42,6 +42,7 @@ MEASURES = ("tests/test_catch_measures.py",)
 CLI = ("tests/test_catch_cli_report.py",)
 SPHERE = ("tests/test_embedding.py::test_sphere_test_reaches_equilibrium_at_the_applied_pressure",)
 TIGHT = ("tests/test_lamp.py::test_lone_sphere_force_converges_to_disk_area",)
+VOXEL_ORDER = ("tests/test_porosity.py::test_voxel_error_falls_with_subdivisions_on_nonoverlapping_packing",)
 
 BUGS = [
     Bug(
@@ -181,12 +182,21 @@ BUGS = [
         SPHERE,
     ),
     Bug(
-        "lone_sphere_area_1.5%",
+        "lone_sphere_area_1%",
         "loose tolerance: lone-sphere convergence",
         "warp_lamp/measures.py",
         "errs.extend(lit[name] * h * h / (np.pi * r * r) - 1.0 for name in LAMPS)",
-        "errs.extend(lit[name] * h * h * 1.015 / (np.pi * r * r) - 1.0 for name in LAMPS)",
+        "errs.extend(lit[name] * h * h * 1.01 / (np.pi * r * r) - 1.0 for name in LAMPS)",
         TIGHT,
+    ),
+    Bug(
+        "voxel_half_subcell_shift",
+        "loose tolerance: voxel convergence order",
+        "warp_lamp/porosity.py",
+        "cen = local if isinstance(local, wp.array) else wp.array(local, dtype=wp.vec3d, device=device)",
+        "cen = local if isinstance(local, wp.array) else wp.array(local + 0.5 * np.asarray(hs), dtype=wp.vec3d, "
+        "device=device)",
+        VOXEL_ORDER,
     ),
 ]
 
