@@ -92,24 +92,19 @@ def _checkout(rev: str, dest: Path, paths: list[str]) -> str:
     return commit
 
 
-def _selected(key: str, rate: float) -> bool:
-    return int(hashlib.sha1(key.encode()).hexdigest()[:12], 16) < rate * 16**12
-
-
-def _sample(session: Path, code: Path, rate: float) -> tuple[int, int]:
-    """Mark every mutant outside the sample as skipped; returns (in the sample, in the operator set)."""
+def _sample_keys(session: Path, code: Path) -> dict[str, float]:
+    """Each mutant's place in [0, 1) (job id -> hash fraction) for the operator set's mutants: a hash of (file,
+    operator, stripped source line, how many such mutants of that line came before it)."""
     from cosmic_ray.work_db import WorkDB, use_db
-    from cosmic_ray.work_item import WorkerOutcome, WorkResult
 
     lines: dict[Path, list[str]] = {}
     seen: collections.Counter = collections.Counter()
-    kept = allowed = 0
+    keys = {}
     with use_db(str(session), WorkDB.Mode.open) as db:
         items = sorted(
-            db.pending_work_items,
+            db.work_items,
             key=lambda w: (str(w.mutations[0].module_path), w.mutations[0].start_pos, w.mutations[0].occurrence),
         )
-        skip = []
         for item in items:
             m = item.mutations[0]
             path = code / m.module_path
@@ -120,13 +115,21 @@ def _sample(session: Path, code: Path, rate: float) -> tuple[int, int]:
             key = f"{base}|{seen[base]}"
             seen[base] += 1
             if m.operator_name in OPERATORS:
-                allowed += 1
-                if _selected(key, rate):
-                    kept += 1
-                    continue
-            skip.append(item.job_id)
+                keys[item.job_id] = int(hashlib.sha1(key.encode()).hexdigest()[:12], 16) / 16**12
+    return keys
+
+
+def _sample(session: Path, code: Path, rate: float) -> tuple[int, int]:
+    """Mark every mutant outside the sample as skipped; returns (in the sample, in the operator set)."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome, WorkResult
+
+    keys = _sample_keys(session, code)
+    (session.parent / "keys.json").write_text(json.dumps(keys))
+    with use_db(str(session), WorkDB.Mode.open) as db:
+        skip = [item.job_id for item in db.pending_work_items if keys.get(item.job_id, 1.0) >= rate]
         db.set_multiple_results(skip, WorkResult(output="not in the sample", worker_outcome=WorkerOutcome.SKIPPED))
-    return kept, allowed
+    return sum(k < rate for k in keys.values()), len(keys)
 
 
 def _baseline(code: Path) -> float:
@@ -196,6 +199,7 @@ def cmd_rerun(args) -> None:
             json.dumps({"code": commit, "tests": tests, "rate": meta["rate"], "rerun_of": args.name})
         )
         shutil.copy(old / "session.sqlite", session)
+        shutil.copy(old / "keys.json", run / "keys.json")
         with use_db(str(session), WorkDB.Mode.open) as db:
             survivors = [job for job, res in db.results if res.test_outcome == TestOutcome.SURVIVED]
             # Forget the survivors' results, so that exec runs them again with the new tests.
@@ -218,6 +222,8 @@ def cmd_report(args) -> None:
 
     run = WORK / args.name
     meta = json.loads((run / "meta.json").read_text())
+    keys = json.loads((run / "keys.json").read_text())
+    below = getattr(args, "below", None)
     rows = []
     with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
         results = dict(db.results)
@@ -226,6 +232,8 @@ def cmd_report(args) -> None:
             if res is not None and res.worker_outcome == WorkerOutcome.SKIPPED:
                 continue
             m = item.mutations[0]
+            if below is not None and keys[item.job_id] >= below:
+                continue
             outcome = "pending" if res is None else str(res.test_outcome.value if res.test_outcome else "none")
             if res is not None and res.output == "timeout":
                 outcome = "timeout"
@@ -236,6 +244,7 @@ def cmd_report(args) -> None:
                     "module": str(m.module_path),
                     "line": m.start_pos[0],
                     "operator": m.operator_name,
+                    "key": round(keys[item.job_id], 6),
                     "outcome": outcome,
                     "diff": "\n".join(
                         x for x in (res.diff or "").splitlines() if x[:1] in "+-" and x[:3] not in ("---", "+++")
@@ -250,6 +259,7 @@ def cmd_report(args) -> None:
     killed = [r for r in done if r["outcome"] in (TestOutcome.KILLED.value, "timeout", TestOutcome.INCOMPETENT.value)]
     summary = {
         **meta,
+        "sample": f"key < {below if below is not None else meta['rate']}",
         "sampled": len(rows),
         "done": len(done),
         "killed": len(killed),
@@ -258,7 +268,8 @@ def cmd_report(args) -> None:
         "score": len(killed) / len(done) if done else None,
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / f"{args.name}.json").write_text(json.dumps({"summary": summary, "mutants": rows}, indent=1) + "\n")
+    name = args.name if below is None else f"{args.name}-below-{below}"
+    (RESULTS / f"{name}.json").write_text(json.dumps({"summary": summary, "mutants": rows}, indent=1) + "\n")
     print(json.dumps(summary, indent=1))
     for r in rows:
         if r["outcome"] == "survived":
@@ -282,6 +293,7 @@ def main(argv=None) -> None:
     rerun.add_argument("--timeout", type=float, default=300.0)
     report = sub.add_parser("report", help="write results/NAME.json from a session and list the survivors")
     report.add_argument("name")
+    report.add_argument("--below", type=float, help="only the mutants whose sample key is below this (a subsample)")
     args = parser.parse_args(argv)
     {"run": cmd_run, "rerun": cmd_rerun, "report": cmd_report}[args.command](args)
 
