@@ -230,8 +230,8 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     bugs = [b for b in BUGS if not args.bugs or b.name in args.bugs]
     lines = [
-        "| bug | class | file | new tests, real code | new tests, bug planted | "
-        + ("old suite, bug planted |" if args.old_suite else ""),
+        "| bug | class | file | new tests, real code | new tests, bug planted |"
+        + (f" suite of {args.old_suite}, bug planted |" if args.old_suite else ""),
         "| --- | --- | --- | --- | --- |" + (" --- |" if args.old_suite else ""),
     ]
     with tempfile.TemporaryDirectory(prefix="warp_lamp_plant_") as tmp:
