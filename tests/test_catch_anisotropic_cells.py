@@ -62,7 +62,9 @@ def test_lone_sphere_load_is_pressure_times_its_disk_on_every_axis(device):
         both = wl.lamp_forces(centre, [r], PRESSURE, grid=grid, criterion=criterion, device=device)
         np.testing.assert_array_equal(both, 0.0)
         for a in range(3):
-            f = wl.lamp_forces(centre, [r], PRESSURE, grid=grid, criterion=criterion, lamps=[wl.LAMPS[2 * a]])
+            f = wl.lamp_forces(
+                centre, [r], PRESSURE, grid=grid, criterion=criterion, lamps=[wl.LAMPS[2 * a]], device=device
+            )
             assert f[0, a] > 0 and np.count_nonzero(f) == 1
             ratio = f[0, a] / (PRESSURE[a] * np.pi * r * r)
             assert abs(ratio - 1.0) < 0.02, (criterion, a, ratio)

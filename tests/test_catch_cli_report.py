@@ -13,9 +13,9 @@ from warp_lamp.reference import lamp_reference
 from warp_lamp.scenes import scene_sphere_specimen
 
 
-def run_cli(*args) -> dict:
+def run_cli(*args, device="cpu") -> dict:
     proc = subprocess.run(
-        [sys.executable, "-m", "warp_lamp", *args, "--device", "cpu", "--repeats", "1"],
+        [sys.executable, "-m", "warp_lamp", *args, "--device", device, "--repeats", "1"],
         capture_output=True,
         text=True,
         timeout=600,
@@ -44,11 +44,11 @@ def after_equals(text: str) -> float:
         (("run", "--criterion", "0", "--cells-per-diameter", "2.5", "--pressure", "2.5e6"), 0, 2.5, 2.5e6),
     ],
 )
-def test_run_report_matches_independent_values(args, criterion, cells_per_diameter, pressure):
+def test_run_report_matches_independent_values(device, args, criterion, cells_per_diameter, pressure):
     """Scene, grid, lit particles and cells per lamp (float64 reference, within its few ambiguous cells), exact
     balance, moment, force magnitudes and the envelope stress (by hand from lamp_forces) are what the report
     prints, to its printed precision."""
-    out = run_cli(*args)
+    out = run_cli(*args, device=device)
     scene = scene_sphere_specimen()
     grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=cells_per_diameter)
     assert numbers(out["scene"].split(":")[1])[:2] == [scene.n, 100.0]
@@ -63,7 +63,7 @@ def test_run_report_matches_independent_values(args, criterion, cells_per_diamet
     for name in wl.LAMPS:
         assert abs(int(printed_lit[name]) - int((ref.owners[name] >= 0).sum())) <= ambiguous[name], name
 
-    f = wl.lamp_forces(scene.centers, scene.radii, pressure, grid=grid, criterion=criterion, device="cpu")
+    f = wl.lamp_forces(scene.centers, scene.radii, pressure, grid=grid, criterion=criterion, device=device)
     assert numbers(out["balance"]) == [0.0, 0.0, 0.0]
     arm = scene.centers - scene.center
     moment = np.linalg.norm(np.cross(arm, f).sum(axis=0)) / (pressure * np.pi * scene.radius**3)
