@@ -24,6 +24,7 @@ import hashlib
 import json
 import os
 import shutil
+import sqlite3
 import subprocess
 import sys
 import time
@@ -60,16 +61,16 @@ OPERATORS = {
     "core/ReplaceContinueWithBreak",
 }
 
-TEST_COMMAND = "bash -c 'rm -rf .hypothesis && exec python -m pytest -x -q -p no:cacheprovider tests'"
+TEST_COMMAND = "bash -c 'rm -rf .hypothesis && exec python -m pytest -x -q -p no:cacheprovider {tests}'"
 
 
-def _config(code: Path, timeout: float) -> str:
+def _config(code: Path, timeout: float, tests: str = "tests") -> str:
     return (
         "[cosmic-ray]\n"
         'module-path = ["warp_lamp", "examples"]\n'
         f"timeout = {timeout}\n"
         "excluded-modules = []\n"
-        f'test-command = "{TEST_COMMAND}"\n'
+        f'test-command = "{TEST_COMMAND.format(tests=tests)}"\n'
         "[cosmic-ray.distributor]\n"
         'name = "local"\n'
     )
@@ -132,10 +133,39 @@ def _sample(session: Path, code: Path, rate: float) -> tuple[int, int]:
     return sum(k < rate for k in keys.values()), len(keys)
 
 
-def _baseline(code: Path) -> float:
+def _forget(session: Path, jobs: list[str]) -> None:
+    """Delete these jobs' results, so that ``cosmic-ray exec`` runs them (again)."""
+    with sqlite3.connect(session) as con:
+        con.executemany("DELETE FROM work_results WHERE job_id = ?", [(j,) for j in jobs])
+
+
+def _resample(run: Path, rate: float) -> int:
+    """Move a session to another rate: mutants below it and not yet run become pending, the others not yet run are
+    skipped; results already measured stay. Returns the mutants now in the sample."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome, WorkResult
+
+    keys = json.loads((run / "keys.json").read_text())
+    with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
+        results = dict(db.results)
+        skipped = {j for j, r in results.items() if r.worker_outcome == WorkerOutcome.SKIPPED}
+    _forget(run / "session.sqlite", [j for j in skipped if keys.get(j, 1.0) < rate])
+    with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
+        sleep = [item.job_id for item in db.pending_work_items if keys.get(item.job_id, 1.0) >= rate]
+        db.set_multiple_results(sleep, WorkResult(output="not in the sample", worker_outcome=WorkerOutcome.SKIPPED))
+    meta = json.loads((run / "meta.json").read_text())
+    meta["rate"] = rate
+    (run / "meta.json").write_text(json.dumps(meta))
+    return sum(k < rate for k in keys.values())
+
+
+def _baseline(code: Path, tests: str = "tests") -> float:
     t0 = time.perf_counter()
     proc = subprocess.run(
-        ["nice", "-n", "15", "bash", "-c", TEST_COMMAND.split("'")[1]], cwd=code, env=_env(code), check=False
+        ["nice", "-n", "15", "bash", "-c", TEST_COMMAND.format(tests=tests).split("'")[1]],
+        cwd=code,
+        env=_env(code),
+        check=False,
     )
     if proc.returncode != 0:
         sys.exit(f"baseline: the unmutated suite fails in {code}; fix that first")
@@ -157,6 +187,8 @@ def cmd_run(args) -> None:
         kept, allowed = _sample(session, code, args.rate)
         print(f"{args.name}: {kept} mutants sampled of {allowed} in the operator set", flush=True)
         print(f"{args.name}: baseline suite {_baseline(code):.0f} s", flush=True)
+    else:
+        print(f"{args.name}: {_resample(run, args.rate)} mutants in the sample at rate {args.rate}", flush=True)
     _exec(run, code, session)
     cmd_report(args)
 
@@ -182,7 +214,7 @@ def _exec(run: Path, code: Path, session: Path) -> None:
 def cmd_rerun(args) -> None:
     """Run another test tree on the survivors of a finished run (its killed mutants stay killed)."""
     from cosmic_ray.work_db import WorkDB, use_db
-    from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
+    from cosmic_ray.work_item import TestOutcome
 
     old = WORK / args.name
     run = WORK / args.new
@@ -194,26 +226,21 @@ def cmd_rerun(args) -> None:
             shutil.rmtree(code)
         commit = _checkout(meta["code"], code, ["warp_lamp", "examples", "pyproject.toml"])
         tests = _checkout(args.tests, code, ["tests"])
-        (run / "cr.toml").write_text(_config(code, args.timeout))
+        select = " ".join(args.select) if args.select else "tests"
+        (run / "cr.toml").write_text(_config(code, args.timeout, select))
         (run / "meta.json").write_text(
-            json.dumps({"code": commit, "tests": tests, "rate": meta["rate"], "rerun_of": args.name})
+            json.dumps({"code": commit, "tests": tests, "rate": meta["rate"], "rerun_of": args.name, "select": select})
         )
         shutil.copy(old / "session.sqlite", session)
         shutil.copy(old / "keys.json", run / "keys.json")
         with use_db(str(session), WorkDB.Mode.open) as db:
             survivors = [job for job, res in db.results if res.test_outcome == TestOutcome.SURVIVED]
-            # Forget the survivors' results, so that exec runs them again with the new tests.
-            for job in survivors:
-                db._session.query(__import__("cosmic_ray.work_db", fromlist=["x"]).WorkResultStorage).filter_by(
-                    job_id=job
-                ).delete()
-            db._session.commit()
-            print(f"{args.new}: {len(survivors)} survivors of {args.name} to run again", flush=True)
-        print(f"{args.new}: baseline suite {_baseline(code):.0f} s", flush=True)
+        _forget(session, survivors)
+        print(f"{args.new}: {len(survivors)} survivors of {args.name} to run again", flush=True)
+        print(f"{args.new}: baseline suite {_baseline(code, select):.0f} s", flush=True)
     _exec(run, code, session)
     args.name = args.new
     cmd_report(args)
-    del WorkResult, WorkerOutcome
 
 
 def cmd_report(args) -> None:
@@ -290,6 +317,12 @@ def main(argv=None) -> None:
     rerun.add_argument("name")
     rerun.add_argument("new")
     rerun.add_argument("--tests", required=True)
+    rerun.add_argument(
+        "--select",
+        nargs="*",
+        help="test paths to run (default: tests): the tests that differ from the first run's, since its survivors "
+        "passed all the others",
+    )
     rerun.add_argument("--timeout", type=float, default=300.0)
     report = sub.add_parser("report", help="write results/NAME.json from a session and list the survivors")
     report.add_argument("name")
