@@ -80,6 +80,10 @@ def _env(code: Path) -> dict:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(code)
     env["WARP_CACHE_PATH"] = str(WORK / "warpcache")
+    # The specimen cache too: a mutant must not write a packing where the user's tests would read it. The
+    # baseline fills it with the unmutated packings, which every mutant then reads: mutants of the packing code
+    # are masked by it (README.md here).
+    env["WARP_LAMP_CACHE"] = str(code.parent / "scenes")
     env["PYTHONDONTWRITEBYTECODE"] = "1"
     return env
 
