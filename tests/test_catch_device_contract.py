@@ -27,10 +27,10 @@ def _example(name):
 
 PACKING_FMA = pytest.mark.xfail(
     strict=True,
-    reason="kernels/packing.py sets only enable_backward: CUDA may contract a*b+c into FMAs, so a packing relaxed "
-    "on a GPU differs from the one relaxed on the CPU (the scene cache is not keyed by device). Seen in the result "
-    "files: the seeded r = 2.5 mm porosity scene gives centroid RMS 0.075112 on the H200 host, 0.075162 on the dev "
-    "machine",
+    reason="kernels/packing.py sets only enable_backward, so CUDA may contract a*b+c into FMAs. Packings relaxed on "
+    "a GPU and on the CPU do differ (the scene cache is not keyed by device): the seeded r = 2.5 mm porosity scene "
+    "gives centroid RMS 0.075112 in the H200 result file, 0.075162 in the dev machine's (FMA or neighbour order: "
+    "not isolated)",
 )
 
 
