@@ -117,3 +117,19 @@ def test_porosity_on_anisotropic_cells(device, rng):
     voxel = porosity(centers, radii, lower, upper, shape, method="voxel", subdivisions=16, device=device)
     assert np.abs(voxel - exact).max() < 5e-3, np.abs(voxel - exact).max()
     assert abs(np.sum(1.0 - voxel) / np.sum(1.0 - exact) - 1.0) < 5e-3
+
+
+def test_frame_averaging_refuses_what_it_cannot_turn(device):
+    """Frame averaging turns the grid, which needs cubic cells, and turns the lamp axes, which needs one pressure:
+    anisotropic cells and a per-axis pressure are refused with errors that name ``frames``, from 2 frames on."""
+    centre, r = [[0.0, 0.0, 0.0]], [0.3]
+    grid = wl.LampGrid([-0.45] * 3, [0.45] * 3, CELL)
+    with pytest.raises(ValueError, match=r"frames: turning a grid needs the box form with cubic cells"):
+        wl.ShiningLamp(grid, frames=2, device=device)
+    with pytest.raises(ValueError, match=r"frames: turning a grid needs the box form with cubic cells"):
+        wl.lamp_forces(centre, r, 1.0e6, grid=grid, frames=2, device=device)
+    with pytest.raises(ValueError, match=r"frames: frame averaging needs an isotropic pressure"):
+        wl.lamp_forces(centre, r, PRESSURE, frames=2, device=device)
+    cubic = wl.LampGrid([-0.45] * 3, [0.45] * 3, 0.05)
+    pair = wl.lamp_forces([[-0.2, 0, 0], [0.2, 0, 0]], [0.2, 0.2], 1.0e6, grid=cubic, frames=2, device=device)
+    assert np.abs(pair).max() > 0 and not pair.sum(axis=0).any()

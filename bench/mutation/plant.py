@@ -86,6 +86,22 @@ BUGS = [
         ANISO,
     ),
     Bug(
+        "frames_cubic_check",
+        "non-cubic cells (frame averaging; a mutation-run survivor)",
+        "warp_lamp/grid.py",
+        "if not self.is_box or np.ptp(h) > 0:",
+        "if not self.is_box and np.ptp(h) > 0:",
+        ANISO,
+    ),
+    Bug(
+        "frames_pressure_check",
+        "non-cubic cells (frame averaging; a mutation-run survivor)",
+        "warp_lamp/lamp.py",
+        "if frames > 1 and np.ptp(p) > 0:",
+        "if frames > 2 and np.ptp(p) > 0:",
+        ANISO,
+    ),
+    Bug(
         "floor_counts",
         "a box that is not a whole number of cells",
         "warp_lamp/grid.py",
