@@ -13,6 +13,7 @@ from test_lamp import assert_matches_reference
 
 import warp_lamp as wl
 from warp_lamp.lamp import lamp_update
+from warp_lamp.peers import BvhLamp
 from warp_lamp.porosity import porosity
 
 CELL = (0.02, 0.03, 0.05)
@@ -133,3 +134,24 @@ def test_frame_averaging_refuses_what_it_cannot_turn(device):
     cubic = wl.LampGrid([-0.45] * 3, [0.45] * 3, 0.05)
     pair = wl.lamp_forces([[-0.2, 0, 0], [0.2, 0, 0]], [0.2, 0.2], 1.0e6, grid=cubic, frames=2, device=device)
     assert np.abs(pair).max() > 0 and not pair.sum(axis=0).any()
+
+
+def test_bvh_peer_finds_the_lamp_owners_on_memo_form_grids(device, rng):
+    """The BVH caster (one ray per cell) and the lamp agree cell by cell on the memo's 18-number form, where each
+    grid has its own corner, extent and cell counts (rectangular cells that differ from grid to grid)."""
+    centers, radii, _ = scene(rng, n=50)
+    grid = wl.LampGrid.from_grids(
+        corners=[[-0.21, -0.17], [-0.23, -0.19], [-0.15, -0.24]],
+        lengths=[[1.02, 0.99], [0.97, 1.04], [1.05, 0.95]],
+        counts=[[37, 23], [41, 19], [29, 44]],
+    )
+    lamp = lamp_update(centers, radii, grid=grid, criterion=1, device=device)
+    peer = BvhLamp(grid, len(radii), device=device)
+    local = grid.to_frame(centers).astype(np.float32)
+    peer.build(wp.array(local, dtype=wp.vec3, device=device), wp.array(radii.astype(np.float32), device=device))
+    peer.cast()
+    owners = peer.owners()
+    d = lamp.diagnostics()
+    assert all((d.owners[name] >= 0).sum() > 50 for name in wl.LAMPS)
+    for name in wl.LAMPS:
+        np.testing.assert_array_equal(owners[name], d.owners[name], err_msg=name)

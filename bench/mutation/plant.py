@@ -102,6 +102,14 @@ BUGS = [
         ANISO,
     ),
     Bug(
+        "bvh_corner_sign",
+        "non-cubic cells (memo-form grids, the BVH peer; a mutation-run survivor)",
+        "warp_lamp/kernels/peers.py",
+        "dv = v - (p[(a + 2) % 3] - grid.corner_v[a])",
+        "dv = v - (p[(a + 2) % 3] + grid.corner_v[a])",
+        ANISO,
+    ),
+    Bug(
         "floor_counts",
         "a box that is not a whole number of cells",
         "warp_lamp/grid.py",
