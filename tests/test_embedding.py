@@ -32,7 +32,7 @@ def test_sphere_test_reaches_equilibrium_at_the_applied_pressure(device):
     st = load_example("sphere_test")
     test = st.SphereTest(2, device=device)
     info = test.run(2500, tol=0.0)  # tol 0: run all 2,500 cycles, do not stop at the first ratio below a bound
-    assert info["cycles"] == 2500, info
+    assert 2500 <= info["cycles"] <= 2502, info  # a GPU run replays pairs of cycles after two eager ones
     assert info["ratio"] < 5e-3, info
     sigma = test.measure()
     mean = np.trace(sigma) / 3
