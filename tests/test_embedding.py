@@ -19,17 +19,26 @@ def load_example(name):
 
 
 def test_sphere_test_reaches_equilibrium_at_the_applied_pressure(device):
-    """Reduced SphereTest (2 cells per diameter, at most 2,500 cycles; captured CUDA graphs on a GPU): the
-    unbalanced force ratio falls below 1e-2, and the measurement sphere's stress is isotropic and within 10% of P."""
+    """Reduced SphereTest (2 cells per diameter, 2,500 cycles; captured CUDA graphs on a GPU): the unbalanced force
+    ratio is below 5e-3, the measurement sphere's stress is isotropic to 1.5% of P, and its mean is 0.95 to 0.975 P.
+
+    Why that band: the loads act at the surface particles' centres, inside the body, so the stress in the 90 mm
+    measurement sphere settles a few percent below P (the memo: 9.6 MPa under 10 MPa). Measured at 2 cells per
+    diameter: 0.9625 P on the CPU (the same from 4,000 to 6,000 cycles; 0.9628 at 2,500, 0.960 to 0.964 from 500
+    on) and 0.961 P on the H200 after 40,000 cycles; 0.967 to 0.970 P at 4 to 16 cells per diameter. The band is
+    0.9625 P +- 1.3%: it holds every converged resolution and the transient from 2,500 cycles, and fails a load
+    2% off P (about 0.982 P or 0.943 P). Measured isotropy at 2,500 cycles: diagonal spread 0.73% of P, largest
+    shear 0.31% of P; ratio 2.4e-3."""
     st = load_example("sphere_test")
     test = st.SphereTest(2, device=device)
-    info = test.run(2500, tol=1e-2)
-    assert info["ratio"] < 1e-2, info
+    info = test.run(2500, tol=0.0)  # tol 0: run all 2,500 cycles, do not stop at the first ratio below a bound
+    assert 2500 <= info["cycles"] <= 2502, info  # a GPU run replays pairs of cycles after two eager ones
+    assert info["ratio"] < 5e-3, info
     sigma = test.measure()
     mean = np.trace(sigma) / 3
-    assert abs(mean - 10e6) < 1e6, mean
-    assert np.abs(sigma - np.diag(np.diag(sigma))).max() < 0.02 * 10e6
-    assert np.ptp(np.diag(sigma)) < 0.03 * 10e6
+    assert 0.95 * 10e6 < mean < 0.975 * 10e6, mean / 10e6
+    assert np.abs(sigma - np.diag(np.diag(sigma))).max() < 0.008 * 10e6
+    assert np.ptp(np.diag(sigma)) < 0.015 * 10e6
 
 
 def test_newton_ball_disperses_without_pressure_and_stays_compact_with_it(device):

@@ -272,10 +272,16 @@ def test_no_particles(device):
 
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_lone_sphere_force_converges_to_disk_area(device, criterion):
-    """F per lamp -> P pi r^2 as cells shrink: RMS error falls at each halving of the cell."""
+    """F per lamp -> P pi r^2 as cells shrink, at the order the geometry gives: 1.5 for the centre ray (counting
+    lattice points in a disk of R cells errs by about R^(1/2), relative R^(-3/2)), 1 for the overlap criterion
+    (it adds a band of about one cell around the rim); and at 16 cells per diameter within 20% of the measured
+    error (64 offsets: 1.01% and 16.4%; the README's 256 offsets give 0.95% and 16.5%), so that a bias of the
+    lit area of 1% already fails."""
     rms = [lone_sphere_error(criterion, k, device, samples=64) for k in (2, 4, 8, 16)]
-    assert all(b < 0.8 * a for a, b in itertools.pairwise(rms)), rms
-    assert rms[-1] < (0.02 if criterion == 1 else 0.3), rms
+    assert all(b < 0.55 * a for a, b in itertools.pairwise(rms)), rms  # measured ratios 2.07 to 3.37 per halving
+    order = -np.polyfit(np.log([2, 4, 8, 16]), np.log(rms), 1)[0]  # measured 1.52 and 1.09
+    assert (1.3 < order < 1.8) if criterion == 1 else (0.9 < order < 1.25), (order, rms)
+    assert rms[-1] < (0.012 if criterion == 1 else 0.195), rms
 
 
 def test_row_of_touching_spheres_memo_figure_4(device):

@@ -87,16 +87,18 @@ def nonoverlapping(rng, n, box, rmin, rmax):
 
 
 def test_voxel_error_falls_with_subdivisions_on_nonoverlapping_packing(device):
-    """Where union equals sum, voxel's error against overlap's exact volumes falls as subdivisions grow, at an
-    order near 1 or better (measured: see README)."""
+    """Where union equals sum, voxel's error against overlap's exact volumes falls at order 2 in subdivisions, as
+    the README says: sampling sub-cell centres is the midpoint rule, whose errors over a sphere's surface largely
+    cancel (measured here: order 2.07, error ratios 3.9, 4.6 and 3.9 per doubling). Asserted: order above 1.7 and
+    every ratio above 3, where sampling sub-cell corners (a half-cell shift) would give order 1 and ratios near 2."""
     rng = np.random.default_rng(11)
     centers, radii = nonoverlapping(rng, 40, 3.0, 0.15, 0.45)
     args = (centers, radii, [0, 0, 0], [3.0] * 3, (3, 3, 3))
     exact = 1.0 - oracle_solid(*args)
     errors = [np.sqrt(np.mean((porosity(*args, subdivisions=s, device=device) - exact) ** 2)) for s in (4, 8, 16, 32)]
-    assert all(b < a for a, b in itertools.pairwise(errors)), errors
+    assert all(b < a / 3 for a, b in itertools.pairwise(errors)), errors
     order = -np.polyfit(np.log([4, 8, 16, 32]), np.log(errors), 1)[0]
-    assert order > 0.8, (order, errors)
+    assert order > 1.7, (order, errors)
 
 
 def test_voxel_union_on_overlapping_packing(device):
