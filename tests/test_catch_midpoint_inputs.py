@@ -1,9 +1,9 @@
 """The midpoint method's inputs: which sub-cell a centre goes to, and how a radius rounds to whole sub-cells.
 
 The paper's algorithms take integer centres and radii. ``warp_lamp.porosity`` rounds them (centre: the sub-cell
-that holds it, floor; radius: nearest whole number of the smallest sub-cell edge, ties to even, at least 1). Here
-the rounding is done by hand on dyadic sub-cells (so that the ties are exact), and the reference is checked not to
-borrow the library's rounding.
+that holds it, floor; radius: nearest whole number of sub-cell edges, ties to even, at least 1). Here the rounding
+is done by hand on dyadic sub-cells (so that the ties are exact), and the reference is checked not to borrow the
+library's rounding.
 """
 
 import ast
@@ -20,20 +20,20 @@ from warp_lamp.reference import midpoint_sphere_offsets, porosity_reference
 porosity_module = importlib.import_module("warp_lamp.porosity")
 reference_module = importlib.import_module("warp_lamp.reference.porosity")
 
-# Sub-cell edges 0.25, 0.5, 0.375 m (one sub-cell per cell, so porosity shows the bitmap): the radius rounds in
-# units of the smallest, 0.25.
-HS = np.array([0.25, 0.5, 0.375])
-SHAPE = (24, 12, 16)
+# Cubic sub-cells of 0.25 m (the midpoint method needs cubes), one per cell, so that porosity shows the bitmap;
+# the anisotropic box (24 x 16 x 20 cells) keeps the three axes apart.
+HS = np.array([0.25, 0.25, 0.25])
+SHAPE = (24, 16, 20)
 
 # (centre [m], radius [m], centre sub-cell by hand, radius in sub-cells by hand)
 CASES = [
-    ((3.0, 3.0, 3.0), 0.625, (12, 6, 8), 2),  # r/h = 2.5: ties to even, 2
-    ((3.0, 3.0, 3.0), 0.875, (12, 6, 8), 4),  # 3.5: to even, 4
-    ((3.0, 3.0, 3.0), 0.7, (12, 6, 8), 3),  # 2.8
-    ((2.99, 2.99, 2.99), 0.6, (11, 5, 7), 2),  # just below a sub-cell corner: floor, not nearest
-    ((0.249, 0.499, 0.374), 0.25, (0, 0, 0), 1),
-    ((3.2, 3.3, 3.4), 0.05, (12, 6, 9), 1),  # r/h = 0.2 rounds to 0: at least 1
-    ((-0.1, 3.0, 3.0), 1.0, (-1, 6, 8), 4),  # centre outside the box: floor, -1, not 0
+    ((3.0, 2.0, 2.5), 0.625, (12, 8, 10), 2),  # r/h = 2.5: ties to even, 2
+    ((3.0, 2.0, 2.5), 0.875, (12, 8, 10), 4),  # 3.5: to even, 4
+    ((3.0, 2.0, 2.5), 0.7, (12, 8, 10), 3),  # 2.8
+    ((2.99, 1.99, 2.49), 0.6, (11, 7, 9), 2),  # just below a sub-cell corner: floor, not nearest
+    ((0.249, 0.249, 0.249), 0.25, (0, 0, 0), 1),
+    ((3.2, 2.3, 2.6), 0.05, (12, 9, 10), 1),  # r/h = 0.2 rounds to 0: at least 1
+    ((-0.1, 2.0, 2.5), 1.0, (-1, 8, 10), 4),  # centre outside the box: floor, -1, not 0
 ]
 
 
@@ -96,7 +96,7 @@ def test_reference_does_not_borrow_the_library_rounding(monkeypatch):
             assert node.module != "warp_lamp.porosity", ast.dump(node)
         if isinstance(node, ast.Import):
             assert all(a.name != "warp_lamp.porosity" for a in node.names)
-    args = ([[3.0, 3.0, 3.0], [1.3, 2.2, 4.4]], [0.875, 0.6], [0, 0, 0], HS * SHAPE, SHAPE)
+    args = ([[3.0, 2.0, 2.5], [1.3, 2.2, 4.4]], [0.875, 0.6], [0, 0, 0], HS * SHAPE, SHAPE)
     before = porosity_reference(*args, method="midpoint", subdivisions=1)
     monkeypatch.setattr(porosity_module, "_midpoint_spheres", lambda local, radii, hs: (None, None))
     np.testing.assert_array_equal(porosity_reference(*args, method="midpoint", subdivisions=1), before)
