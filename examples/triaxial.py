@@ -322,9 +322,8 @@ class TriaxialTest:
         d = self.device
         if porosity is None:
             porosity = default_porosity(particles)
-        self.scene = scene or scene_cylinder_specimen(
-            DIAMETER, particles=particles, porosity=porosity, seed=seed, device=d
-        )
+        # Packed on the CPU (seconds, cached), so that every machine tests the same specimen.
+        self.scene = scene or scene_cylinder_specimen(DIAMETER, particles=particles, porosity=porosity, seed=seed)
         s = self.scene
         self.n = s.n
         self.sigma3 = float(sigma3)

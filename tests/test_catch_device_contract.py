@@ -28,9 +28,9 @@ def _example(name):
 PACKING_FMA = pytest.mark.xfail(
     strict=True,
     reason="kernels/packing.py sets only enable_backward, so CUDA may contract a*b+c into FMAs. Packings relaxed on "
-    "a GPU and on the CPU do differ (the scene cache is not keyed by device): the seeded r = 2.5 mm porosity scene "
-    "gives centroid RMS 0.075112 in the H200 result file, 0.075162 in the dev machine's (FMA or neighbour order: "
-    "not isolated)",
+    "a GPU and on the CPU do differ (the seeded r = 2.5 mm porosity scene gives centroid RMS 0.075112 in the H200 "
+    "result file, 0.075162 in the dev machine's; FMA or the order of atomic sums, not isolated), so the specimens are "
+    "packed on the CPU by default and the scene cache keys packings by device kind",
 )
 
 

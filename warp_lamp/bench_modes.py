@@ -667,6 +667,7 @@ def plot_area(ax, result: dict) -> None:
             key = (r["device"], _estimator_name(r))
             if key not in keys:
                 keys.append(key)
+        has_cuda = any(dev.startswith("cuda") for dev, _ in keys)
         for dev, name in keys:
             pts = [r for r in sec["rows"] if (r["device"], _estimator_name(r)) == (dev, name)]
             err = [100.0 * r["rms"] for r in pts]
@@ -680,9 +681,9 @@ def plot_area(ax, result: dict) -> None:
                 color=colour,
                 alpha=1.0 if cuda else 0.45,
                 markersize=4,
-                label=name if cuda else None,
+                label=name if cuda or not has_cuda else None,
             )
-            if cuda:
+            if cuda or not has_cuda:
                 for r, x, y in zip(pts, err, t, strict=True):
                     ax.annotate(
                         f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"

@@ -113,6 +113,13 @@ def _cache_dir() -> Path:
     return Path(base)
 
 
+def _device_kind(device) -> str:
+    """ "cpu" or "cuda": packings relaxed on the two differ in their last digits, so the cache keeps them apart."""
+    import warp as wp
+
+    return "cuda" if wp.get_device(device).is_cuda else "cpu"
+
+
 def _cached_packing(kind: str, params: dict, build, *, cache: bool) -> tuple[np.ndarray, np.ndarray]:
     """(centres, radii) of a packing: read from the disk cache, keyed by ``kind`` and ``params``, or made by
     ``build()`` and written there atomically (so that concurrent processes never read half a file)."""
@@ -156,13 +163,16 @@ def scene_sphere_specimen(
         ratio: Rmax / Rmin.
         porosity: Target porosity of the envelope sphere.
         seed: Random seed.
-        device: Warp device for the relaxation (CPU takes a few seconds).
-        cache: Read and write the on-disk cache.
+        device: Warp device for the relaxation: the CPU by default (a few seconds), so that the specimen is the same
+            on every machine; a GPU relaxes it faster but rounds differently (contracted multiply-adds, the order
+            of atomic sums), so its packing differs in the last digits of what is measured on it.
+        cache: Read and write the on-disk cache (keyed by the parameters and the device kind).
     """
+    device = "cpu" if device is None else device
     R = diameter / 2.0
     centers, radii = _cached_packing(
         "specimen",
-        dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed),
+        dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed, on=_device_kind(device)),
         lambda: _relax_packing(R, particle_diameter / 2.0, ratio, porosity, seed, device),
         cache=cache,
     )
@@ -275,7 +285,8 @@ def scene_overlapping_box(
         solid_fraction: Summed sphere volume over box volume.
         max_overlap: Largest overlap kept, as a fraction of the radius.
         seed: Random seed.
-        device: Warp device for the relaxation.
+        device: Warp device for the relaxation (a CPU and a GPU packing differ in their last digits; the cache
+            keeps them apart).
         cache: Read and write the on-disk cache.
     """
     size = np.asarray(size, dtype=np.float64)
@@ -289,6 +300,7 @@ def scene_overlapping_box(
         return centers, radii
 
     params = dict(kind="box", r=radius, size=size.tolist(), phi=solid_fraction, ov=max_overlap, seed=seed)
+    params["on"] = _device_kind(device)
     centers, radii = _cached_packing("box", params, build, cache=cache)
     return Scene(f"overlapping box, r = {radius * 1e3:g} mm", centers, radii, size / 2.0)
 
@@ -320,9 +332,12 @@ def scene_cylinder_specimen(
         ratio: Rmax / Rmin.
         porosity: Porosity of the cylinder (1 - particle volume / cylinder volume).
         seed: Random seed.
-        device: Warp device for the relaxation.
+        device: Warp device for the relaxation: the CPU by default (about 7 s for 10,000 particles on one core), so
+            that the specimen is the same on every machine; a GPU packing differs in its last digits (the cache
+            keeps them apart).
         cache: Read and write the on-disk cache.
     """
+    device = "cpu" if device is None else device
     height = 2.0 * diameter if height is None else float(height)
     if int(particles) < 1:
         raise ValueError(f"particles: need at least 1, got {particles!r}")
@@ -341,6 +356,7 @@ def scene_cylinder_specimen(
         return relax_packing(x0, radii, body_radius=-R, box=box, device=device), radii
 
     params = dict(kind="cylinder", d=diameter, h=height, n=int(particles), ratio=ratio, phi=porosity, seed=seed)
+    params["on"] = _device_kind(device)
     centers, radii = _cached_packing("cylinder", params, build, cache=cache)
     name = f"cylinder specimen {diameter * 1e3:g} x {height * 1e3:g} mm, {int(particles)} particles"
     return Scene(name, centers, radii, np.zeros(3))
