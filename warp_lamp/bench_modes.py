@@ -661,13 +661,16 @@ def plot_area(ax, result: dict) -> None:
     """Update time against the specimen's per-particle force error (the ``area`` section), on a matplotlib axes:
     a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager)."""
     colours = {}
-    for sec in result.get("area") or []:
+    sections = result.get("area") or []
+    # The benchmark writes a section per device; CPU curves are labelled only where no GPU ran (one legend entry
+    # per estimator).
+    has_cuda = any(r["device"].startswith("cuda") for sec in sections for r in sec["rows"])
+    for sec in sections:
         keys = []
         for r in sec["rows"]:
             key = (r["device"], _estimator_name(r))
             if key not in keys:
                 keys.append(key)
-        has_cuda = any(dev.startswith("cuda") for dev, _ in keys)
         for dev, name in keys:
             pts = [r for r in sec["rows"] if (r["device"], _estimator_name(r)) == (dev, name)]
             err = [100.0 * r["rms"] for r in pts]
