@@ -68,6 +68,35 @@ def find_slot(ids: wp.array2d[wp.int32], i: int, j: int) -> int:
     return -1
 
 
+@wp.func
+def contact_law(
+    fs: wp.vec3d,
+    vt: wp.vec3d,
+    closing: wp.float64,
+    fn: wp.float64,
+    kn: wp.float64,
+    ks: wp.float64,
+    cd: wp.float64,
+    mu: wp.float64,
+):
+    """Coulomb's limit on the shear spring ``fs`` and the dashpots (coefficient ``cd``, 0 for none) of one contact
+    closing at ``closing`` [m/s] with tangential velocity ``vt``: returns the spring kept as the contact's state, the
+    normal force with its dashpot (it never pulls), and the shear force with its dashpot (only while the spring
+    sticks)."""
+    limit = mu * fn
+    mag = wp.length(fs)
+    fnd = fn
+    if cd > wp.float64(0.0):
+        fnd = wp.max(fn + cd * wp.sqrt(kn) * closing, wp.float64(0.0))
+    fd = fs
+    if mag > limit:
+        fs = fs * (limit / mag)
+        fd = fs
+    elif cd > wp.float64(0.0):
+        fd = fs + cd * wp.sqrt(ks) * vt
+    return fs, fnd, fd
+
+
 @wp.kernel(enable_backward=False)
 def dem_contacts(
     grid: wp.uint64,
@@ -122,20 +151,12 @@ def dem_contacts(
             fs = old_shear[i, k]
             fs = fs - wp.dot(fs, n) * n  # back into the current tangent plane
         fs = fs + ks * vt * dt
-        limit = mat.mu * fn
-        mag = wp.length(fs)
         # Dashpots: c = 2 zeta sqrt(m k), m the reduced mass; the springs' fn and fs stay the contact's state.
-        fnd = fn
         cd = wp.float64(0.0)
         if mat.viscous > wp.float64(0.0):
             cd = wp.float64(2.0) * mat.viscous * wp.sqrt(mass[i] * mass[j] / (mass[i] + mass[j]))
-            fnd = wp.max(fn - cd * wp.sqrt(kn) * wp.dot(vc, n), wp.float64(0.0))
-        fd = fs
-        if mag > limit:
-            fs = fs * (limit / mag)
-            fd = fs
-        elif cd > wp.float64(0.0):
-            fd = fs + cd * wp.sqrt(ks) * vt
+        # n points from i to j, so the balls close in while vc . n < 0.
+        fs, fnd, fd = contact_law(fs, vt, -wp.dot(vc, n), fn, kn, ks, cd, mat.mu)
         f = f - fnd * n + fd
         m = m + wp.cross(ri * n, fd)
         if slot < SLOTS:
@@ -191,20 +212,11 @@ def dem_planes(
         fs = shear[i, p]
         fs = fs - wp.dot(fs, n) * n
         fs = fs + ks * vt * dt
-        limit = mat.mu * fn
-        mag = wp.length(fs)
-        fnd = fn
         cd = wp.float64(0.0)
         if mat.viscous > wp.float64(0.0):
             cd = wp.float64(2.0) * mat.viscous * wp.sqrt(mass[i])
-            # vc . n > 0 while the plane and the ball close in (n points from the plane to the ball): push harder.
-            fnd = wp.max(fn + cd * wp.sqrt(kn) * wp.dot(vc, n), wp.float64(0.0))
-        fd = fs
-        if mag > limit:
-            fs = fs * (limit / mag)
-            fd = fs
-        elif cd > wp.float64(0.0):
-            fd = fs + cd * wp.sqrt(ks) * vt
+        # vc . n > 0 while the plane and the ball close in (n points from the plane to the ball).
+        fs, fnd, fd = contact_law(fs, vt, wp.dot(vc, n), fn, kn, ks, cd, mat.mu)
         shear[i, p] = fs
         f = f + fnd * n + fd
         m = m + wp.cross(-ri * n, fd)

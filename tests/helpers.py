@@ -1,5 +1,9 @@
 """Scenes and device helpers shared by the tests (fixtures live in conftest.py)."""
 
+import importlib.util
+import sys
+from pathlib import Path
+
 import numpy as np
 import warp as wp
 
@@ -10,6 +14,19 @@ wp.init()
 CUDA_DEVICES = [d.alias for d in wp.get_cuda_devices()]
 #: Every device a test runs on: the CPU always, each CUDA device when there is one.
 DEVICES = ["cpu", *CUDA_DEVICES]
+#: The repository's examples/ folder: no package, so the tests load its scripts by path.
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+def load_example(name: str):
+    """examples/<name>.py as a module, loaded once and kept in ``sys.modules`` under its name (as the examples
+    load their sibling ``dem``)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
 
 
 def polydisperse_scene(rng, n=150, extent=5.0, rmin=0.2, rmax=0.6):

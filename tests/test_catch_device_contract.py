@@ -2,27 +2,15 @@
 devices directly skip without a GPU, so the compile options behind the property are asserted here."""
 
 import importlib
-import importlib.util
 import pkgutil
-import sys
-from pathlib import Path
 
 import pytest
 import warp as wp
+from helpers import load_example
 
 import warp_lamp.kernels
 
-ROOT = Path(__file__).resolve().parent.parent
 KERNEL_MODULES = sorted(f"warp_lamp.kernels.{m.name}" for m in pkgutil.iter_modules(warp_lamp.kernels.__path__))
-
-
-def _example(name):
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
 
 
 PACKING_FMA = pytest.mark.xfail(
@@ -41,7 +29,7 @@ PACKING_FMA = pytest.mark.xfail(
 def test_kernel_modules_compile_without_fma_contraction(name):
     """Every kernel module (and the examples' DEM) is compiled with fuse_fp off and no backward pass, the project's
     rule for CPU = CUDA rounding."""
-    module = _example(name) if name == "dem" else importlib.import_module(name)
+    module = load_example(name) if name == "dem" else importlib.import_module(name)
     options = wp.get_module(module.__name__).options
     assert options["fuse_fp"] is False, name
     assert options["enable_backward"] is False, name

@@ -7,7 +7,7 @@ import pytest
 
 from warp_lamp.bench_porosity import table_1
 from warp_lamp.measures import lone_sphere_error
-from warp_lamp.reference import PAPER_TABLE_1
+from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets
 
 #: README "Accuracy": lone-sphere RMS error [%] at 2, 4, 8, 16 cells per diameter, 256 offsets.
 ACCURACY = {1: ["21.9", "7.9", "2.5", "0.95"], 0: ["161", "72", "34", "16"]}
@@ -34,49 +34,12 @@ def test_lone_sphere_accuracy_table(device, criterion):
         assert agrees(e, printed), (criterion, k, e, printed)
 
 
-def midpoint_count_with_line_ends(rad: int) -> int:
-    """Algorithm 1 with ``line`` marking -x ... x inclusive (the paper's ``range(x)`` made to include its ends),
-    written out here: the counterfactual the README quotes."""
-    marked = set()
-
-    def line(x, y, z):
-        for i in range(x + 1):
-            marked.update({(i, y, z), (-i, y, z)})
-
-    def disk(r, z):
-        x, yr, p = 0, r, 1.25 - r
-        while yr >= x:
-            for zz in (z, -z):
-                line(x, yr, zz)
-                line(yr, x, zz)
-                line(x, -yr, zz)
-                line(yr, -x, zz)
-            if p < 0:
-                p += 2 * x + 3
-            else:
-                p += 2 * (x - yr) + 5
-                yr -= 1
-            x += 1
-
-    z, yr, p = 0, rad, 1.25 - rad
-    while yr >= z:
-        disk(yr, z)
-        disk(z, yr)
-        if p < 0:
-            p += 2 * z + 3
-        else:
-            p += 2 * (z - yr) + 5
-            yr -= 1
-        z += 1
-    return len(marked)
-
-
 def test_paper_table_1_figures():
     """README "Paper's Table 1": with the line ends included the counts would be 4,873 (r = 10) and 68,075
     (r = 25); the paper's counts are 0.3% under the ball's volume at r = 10, 2.2% under at 25 and 17% under at 4,
     but 4.4% over at r = 2 and 1.0% over at r = 5."""
-    assert midpoint_count_with_line_ends(10) == 4873
-    assert midpoint_count_with_line_ends(25) == 68075
+    assert len(midpoint_sphere_offsets(10, line_ends=True)) == 4873
+    assert len(midpoint_sphere_offsets(25, line_ends=True)) == 68075
     fill = {r: 100 * (PAPER_TABLE_1[r - 1] / (4 / 3 * np.pi * r**3) - 1) for r in (2, 4, 5, 10, 25)}
     for r, printed in ((10, "-0.3"), (25, "-2.2"), (4, "-17"), (2, "4.4"), (5, "1.0")):
         assert agrees(fill[r], printed), (r, fill[r])

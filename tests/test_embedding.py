@@ -1,21 +1,8 @@
 """The lamp inside Warp simulators: the memo's SphereTest in a minimal DEM, and Newton's particle solver."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def load_example(name):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+from helpers import load_example
 
 
 def test_sphere_test_reaches_equilibrium_at_the_applied_pressure(device):

@@ -1,26 +1,14 @@
 """examples/triaxial.py: a drained triaxial test confined by the lamp, small enough for a CPU core."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
+from helpers import load_example
 
 from warp_lamp.scenes import scene_cylinder_specimen
 
-ROOT = Path(__file__).resolve().parent.parent
 SIGMA_3 = 100e3
 PARTICLES = 300
 _RUNS = {}
-
-
-def load_example(name):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def small_triaxial(device, surfaces="first"):

@@ -13,37 +13,14 @@ import argparse
 import json
 import platform
 import subprocess
-import time
 
 import numpy as np
 import warp as wp
 
 import warp_lamp as wl
 from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
+from warp_lamp.timing import time_median_events
 from warp_lamp.wetted import WettedSurface
-
-
-def gpu_time(fn, device, repeats, warmup=3):
-    """Median seconds between CUDA events around fn() (host-timed with a sync on the CPU)."""
-    for _ in range(warmup):
-        fn()
-    wp.synchronize_device(device)
-    times = []
-    for _ in range(repeats):
-        if device.is_cuda:
-            e0 = wp.Event(device, enable_timing=True)
-            e1 = wp.Event(device, enable_timing=True)
-            wp.record_event(e0)
-            fn()
-            wp.record_event(e1)
-            wp.synchronize_event(e1)
-            times.append(wp.get_event_elapsed_time(e0, e1) / 1e3)
-        else:
-            t0 = time.perf_counter()
-            fn()
-            wp.synchronize_device(device)
-            times.append(time.perf_counter() - t0)
-    return float(np.median(times))
 
 
 def capture(device, fn):
@@ -105,22 +82,24 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
         first_moving = capture(
             device, lambda: (lamp.update(moved, rad, in_frame=True), lamp.update(pos, rad, in_frame=True))
         )
-        out["first_replay_s"] = gpu_time(lambda: wp.capture_launch(first), device, repeats)
-        out["first_moving_s"] = gpu_time(lambda: wp.capture_launch(first_moving), device, repeats) / 2
+        out["first_replay_s"] = time_median_events(lambda: wp.capture_launch(first), device, repeats=repeats)
+        out["first_moving_s"] = time_median_events(lambda: wp.capture_launch(first_moving), device, repeats=repeats) / 2
         graphs = {s: capture(device, lambda s=s: surf._update(pos, rad, None, stop=s)) for s in surf.STAGES}
         moving = capture(device, lambda: (surf.update(moved, rad), surf.update(pos, rad)))
         prev = 0.0
         for s in surf.STAGES:
-            t = gpu_time(lambda g=graphs[s]: wp.capture_launch(g), device, repeats)
+            t = time_median_events(lambda g=graphs[s]: wp.capture_launch(g), device, repeats=repeats)
             out[f"all_{s}_s"] = t - prev
             prev = t
         out["all_replay_s"] = prev
-        out["all_moving_s"] = gpu_time(lambda: wp.capture_launch(moving), device, repeats) / 2
+        out["all_moving_s"] = time_median_events(lambda: wp.capture_launch(moving), device, repeats=repeats) / 2
     else:
-        out["first_eager_s"] = gpu_time(lambda: lamp.update(pos, rad, in_frame=True), device, repeats, warmup=1)
+        out["first_eager_s"] = time_median_events(
+            lambda: lamp.update(pos, rad, in_frame=True), device, repeats=repeats, warmup=1
+        )
         prev = 0.0
         for s in surf.STAGES:
-            t = gpu_time(lambda s=s: surf._update(pos, rad, None, stop=s), device, repeats, warmup=1)
+            t = time_median_events(lambda s=s: surf._update(pos, rad, None, stop=s), device, repeats=repeats, warmup=1)
             out[f"all_{s}_s"] = t - prev
             prev = t
         out["all_eager_s"] = prev

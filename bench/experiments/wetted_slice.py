@@ -11,18 +11,10 @@ import argparse
 
 import numpy as np
 import warp as wp
+from wetted_checks import wetted_solve
 
 import warp_lamp as wl
 from warp_lamp.scenes import scene_slot_block
-from warp_lamp.wetted import WettedSurface
-
-
-def wetted_solve(centers, radii, *, probe_radius, grid, device="cpu", **kw):
-    """The wetted-surface engine on host positions (frame coordinates in float64, then float32)."""
-    surface = WettedSurface(grid, probe_radius=probe_radius, device=device, **kw)
-    pos = wp.array(grid.to_frame(centers).astype(np.float32), dtype=wp.vec3, device=device)
-    surface.update(pos, wp.array(np.asarray(radii, dtype=np.float32), device=device))
-    return surface
 
 
 def main():

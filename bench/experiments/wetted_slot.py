@@ -13,40 +13,15 @@ import time
 
 import numpy as np
 import warp as wp
+from wetted_checks import wetted_solve
 
 import warp_lamp as wl
 from warp_lamp.lamp import pressure_area
+from warp_lamp.measures import slot_load_ratios
 from warp_lamp.reference.wetted import wetted_reference
 from warp_lamp.scenes import scene_slot_block
-from warp_lamp.wetted import WettedSurface
 
 P = 1.0
-
-
-def wetted_solve(centers, radii, *, probe_radius, grid, device="cpu", **kw):
-    """The wetted-surface engine on host positions (frame coordinates in float64, then float32)."""
-    surface = WettedSurface(grid, probe_radius=probe_radius, device=device, **kw)
-    pos = wp.array(grid.to_frame(centers).astype(np.float32), dtype=wp.vec3, device=device)
-    surface.update(pos, wp.array(np.asarray(radii, dtype=np.float32), device=device))
-    return surface
-
-
-def ratios(scene, forces):
-    cut, idx = scene.cut, scene.index
-    top = idx[:, 2] >= cut["k0"]
-    lo = (idx[:, 1] == cut["wall_lo"]) & top
-    hi = (idx[:, 1] == cut["wall_hi"]) & top
-    layer = idx[:, 2] == cut["floor"]
-    floor = layer & (idx[:, 1] >= cut["j0"]) & (idx[:, 1] < cut["j1"])
-    floor_plus = layer & (idx[:, 1] >= cut["wall_lo"]) & (idx[:, 1] <= cut["wall_hi"])
-    side = P * cut["length"] * cut["depth"]
-    bottom = P * cut["length"] * cut["width"]
-    return dict(
-        wall_lo=-forces[lo, 1].sum() / side,
-        wall_hi=forces[hi, 1].sum() / side,
-        floor=-forces[floor, 2].sum() / bottom,
-        floor_plus=-forces[floor_plus, 2].sum() / bottom,
-    )
 
 
 def row(label, r, loaded, extra=""):
@@ -74,7 +49,7 @@ def main():
         print(
             row(
                 f'"first", {cpd} cells/d',
-                ratios(scene, f),
+                slot_load_ratios(scene, f, P),
                 int(lamp.diagnostics().surface.sum()),
                 f"{loaded:,} with F != 0",
             )
@@ -103,13 +78,13 @@ def main():
             print(
                 row(
                     f"all, rho {label} (reference)",
-                    ratios(scene, fr),
+                    slot_load_ratios(scene, fr, P),
                     int((ref.hits > 0).sum()),
                     f"reference {t2 - t1:.1f} s; kernels equal: {same}; ambiguous voxels {amb}, near ties {ties}; "
                     f"max nearest distance / bound {worst:.2f}",
                 )
             )
-        print(row(f"all, rho {label} (kernels)", ratios(scene, fk), int(d.surface.sum()), note))
+        print(row(f"all, rho {label} (kernels)", slot_load_ratios(scene, fk, P), int(d.surface.sum()), note))
 
 
 if __name__ == "__main__":

@@ -73,13 +73,17 @@ def sphere_box_volume(lo, hi, r, dtype=np.float64):
     return np.where(np.all(hi > lo, axis=-1), total, dtype(0.0))
 
 
-def midpoint_sphere_offsets(rad: int) -> np.ndarray:
+def midpoint_sphere_offsets(rad: int, *, line_ends: bool = False) -> np.ndarray:
     """Sub-cell offsets that the paper's Algorithm 1 (traversal sphere) marks for a sphere of radius ``rad``,
-    as printed, with the fixes listed in :func:`warp_lamp.porosity`. Returns unique offsets, shape (M, 3)."""
+    as printed, with the fixes listed in :func:`warp_lamp.porosity`. Returns unique offsets, shape (M, 3).
+
+    ``line_ends=True`` draws each run -x ... x inclusive: the counterfactual the README quotes (what the paper's
+    ``range(x)`` would mark with its ends included); the library never uses it."""
     marked = set()
+    stop = 1 if line_ends else 0
 
     def line(x, y, z):
-        for i in range(x):  # as printed: the run stops one short of +-x, and x = 0 draws nothing
+        for i in range(x + stop):  # as printed (stop 0): the run stops one short of +-x, and x = 0 draws nothing
             marked.add((i, y, z))
             marked.add((-i, y, z))
 
