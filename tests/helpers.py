@@ -40,3 +40,17 @@ def device_arrays(centers, radii, device):
     """float32 ``vec3`` positions and ``float32`` radii on ``device``, as a simulator holds them."""
     pos = wp.array(np.asarray(centers, dtype=np.float32), dtype=wp.vec3, device=device)
     return pos, wp.array(np.asarray(radii, dtype=np.float32), dtype=wp.float32, device=device)
+
+
+def bvh_owners(grid, centers, radii, device):
+    """The BVH ray caster's owners per lamp (one ray per cell, no footprint: an independent algorithm) for world
+    centres [m], shape (N, 3), and radii [m]; returns (owners by lamp name, the caster)."""
+    from warp_lamp.peers import BvhLamp
+
+    peer = BvhLamp(grid, len(radii), device=device)
+    local = grid.to_frame(centers).astype(np.float32)
+    peer.build(
+        wp.array(local, dtype=wp.vec3, device=device), wp.array(np.asarray(radii, dtype=np.float32), device=device)
+    )
+    peer.cast()
+    return peer.owners(), peer

@@ -8,12 +8,11 @@ each one is off by a factor between 0.4 and 2.5. The expected values are compute
 import numpy as np
 import pytest
 import warp as wp
-from helpers import device_arrays
+from helpers import bvh_owners, device_arrays
 from test_lamp import assert_matches_reference
 
 import warp_lamp as wl
 from warp_lamp.lamp import lamp_update
-from warp_lamp.peers import BvhLamp
 from warp_lamp.porosity import porosity
 
 CELL = (0.02, 0.03, 0.05)
@@ -146,11 +145,7 @@ def test_bvh_peer_finds_the_lamp_owners_on_memo_form_grids(device, rng):
         counts=[[37, 23], [41, 19], [29, 44]],
     )
     lamp = lamp_update(centers, radii, grid=grid, criterion=1, device=device)
-    peer = BvhLamp(grid, len(radii), device=device)
-    local = grid.to_frame(centers).astype(np.float32)
-    peer.build(wp.array(local, dtype=wp.vec3, device=device), wp.array(radii.astype(np.float32), device=device))
-    peer.cast()
-    owners = peer.owners()
+    owners, _ = bvh_owners(grid, centers, radii, device)
     d = lamp.diagnostics()
     assert all((d.owners[name] >= 0).sum() > 50 for name in wl.LAMPS)
     for name in wl.LAMPS:

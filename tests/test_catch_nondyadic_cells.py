@@ -12,10 +12,10 @@ from fractions import Fraction
 import numpy as np
 import pytest
 import warp as wp
+from helpers import bvh_owners
 
 import warp_lamp as wl
 from warp_lamp.lamp import lamp_update
-from warp_lamp.peers import BvhLamp
 
 CELLS = [Fraction(1, 10), Fraction(3, 10), Fraction(1, 3)]
 RADIUS_CELLS = 5  # 3-4-5 and 5-0-5: twelve lattice points on each silhouette
@@ -106,11 +106,7 @@ def test_silhouette_cells_decided_alike_by_depth_pass_and_per_cell_rays(device, 
     c, r = as_float(centres, radii)
     grid = wl.LampGrid([0.0] * 3, [float(N_CELLS * h)] * 3, float(h))
     lamp = lamp_update(c, r, grid=grid, criterion=1, device=device)
-    peer = BvhLamp(grid, len(r), device=device)
-    local = grid.to_frame(c).astype(np.float32)
-    peer.build(wp.array(local, dtype=wp.vec3, device=device), wp.array(r.astype(np.float32), device=device))
-    peer.cast()
-    owners = peer.owners()
+    owners, _ = bvh_owners(grid, c, r, device)
     d = lamp.diagnostics()
     _, boundary = exact_decision(centres, radii, h, grid.counts, 1)
     for name in wl.LAMPS:

@@ -2,12 +2,10 @@
 
 import numpy as np
 import pytest
-import warp as wp
-from helpers import polydisperse_scene
+from helpers import bvh_owners, polydisperse_scene
 
 import warp_lamp as wl
 from warp_lamp.lamp import lamp_update
-from warp_lamp.peers import BvhLamp
 from warp_lamp.scenes import scene_lattice_box
 
 
@@ -23,11 +21,7 @@ def test_bvh_owners_equal_lamp_owners(device, rng, scene):
         if scene == "far":
             centers = centers + 5.0e3
     lamp = lamp_update(centers, radii, cells_per_diameter=4, criterion=1, device=device)
-    local = (centers - lamp.grid.origin).astype(np.float32)
-    peer = BvhLamp(lamp.grid, len(radii), device=device)
-    peer.build(wp.array(local, dtype=wp.vec3, device=device), wp.array(radii.astype(np.float32), device=device))
-    peer.cast()
-    owners = peer.owners()
+    owners, peer = bvh_owners(lamp.grid, centers, radii, device)
     d = lamp.diagnostics()
     for name in wl.LAMPS:
         np.testing.assert_array_equal(owners[name], d.owners[name], err_msg=name)
