@@ -143,8 +143,8 @@ _TARGET_THREADS = 1 << 18
 _MAX_SPLIT = 16
 #: Particles from which the automatic choices treat a body as large.
 _LARGE_BODY = 1 << 16
-#: Diagnostics slots: the lamp's two counters, then the area kernel's two.
-_N_DIAG = 4
+#: Diagnostics slots: the lamp's counters, then the area kernel's two.
+_N_DIAG = lamp_kernels.N_DIAG + 2
 
 
 def _auto_split(n: int, device) -> int:
@@ -377,10 +377,6 @@ class ShiningLamp:
             False: grid.params(self.origin, self.rotation, corners=area),
             True: grid.params(*frame_pose, corners=area),
         }
-        self._frame_rotation = frame_pose[1]
-        self._sample_offset = wp.vec3i(
-            *(int(x) for x in np.concatenate([[0], np.cumsum((grid.counts[:, 0] + 1) * (grid.counts[:, 1] + 1))[:2]]))
-        )
         self.keys = wp.full(2 * self.depth_slots * samples, value=_EMPTY, dtype=wp.uint64, device=d)
         self._frame_positions = wp.zeros(0, dtype=wp.vec3, device=d)
         self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
@@ -388,6 +384,14 @@ class ShiningLamp:
         if self.follow:
             self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=d)
             self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=d)
+            # The grid never changes, so its base origin, cells and box are kernel constants, made once.
+            base = grid.world_origin
+            self._follow_base = (
+                wp.vec3(*base.astype(np.float32)),
+                wp.vec3d(*base),
+                wp.vec3d(*grid.box_cell),
+                wp.vec3i(*grid.box_counts),
+            )
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
         self.n = 0
@@ -411,8 +415,9 @@ class ShiningLamp:
                     f"positions: {n} particles exceed the {self.counts.shape[0] // 3} reserved; call "
                     "ShiningLamp.reserve(n) or one eager update before wp.ScopedCapture"
                 )
-            self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
-            if self._wet is not None:
+            if self._wet is None:
+                self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
+            else:
                 self._wet.reserve(n)
                 self.counts = self._wet.counts
                 self._frame_positions = wp.zeros(n, dtype=wp.vec3, device=self.device)
@@ -522,19 +527,18 @@ class ShiningLamp:
     def launch_follow(self) -> None:
         """Update step 0, with ``follow``: find the body's box and move the frame origin by whole cells."""
         _, particles = self._inputs
-        g = self.grid
+        origin32, origin, cell, box = self._follow_base
         wp.launch(
             lamp_kernels.lamp_follow_bounds,
             dim=self.n,
-            inputs=[particles, wp.vec3(*g.world_origin.astype(np.float32)), self.rotation],
+            inputs=[particles, origin32, self.rotation],
             outputs=[self._bounds],
             device=self.device,
         )
-        box = g.box_counts
         wp.launch(
             lamp_kernels.lamp_follow_shift,
             dim=1,
-            inputs=[wp.vec3d(*g.world_origin), wp.vec3d(*g.box_cell), wp.vec3i(*box), self.rotation],
+            inputs=[origin, cell, box, self.rotation],
             outputs=[self._bounds, self.follow_shift, self.origin],
             device=self.device,
         )
@@ -608,7 +612,7 @@ class ShiningLamp:
                     particles,
                     self.keys,
                     self.depth_slots,
-                    self._sample_offset,
+                    self._rays[in_frame].offset,  # where each lamp's corner samples start among the keys
                     self.lamp_mask,
                     area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
                     self.subpoints,
@@ -677,8 +681,9 @@ class ShiningLamp:
             arr = pressure
         else:
             p, _ = lamp_pressure(pressure, self.grid.rotation)
-            self.force_factors(p)  # refuses P A outside the exact range
-            check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1], float32=True)
+            cells = self.grid.counts[:, 0] * self.grid.counts[:, 1]
+            check_force_range(p, self.grid.cell_area, cells)  # the exact range
+            check_force_range(p, self.grid.cell_area, cells, float32=True)
             const = wp.vec3d(*p)
         if self.n > 0:
             in_frame = self._inputs[0]
@@ -688,7 +693,7 @@ class ShiningLamp:
                 inputs=[
                     self.counts,
                     wp.vec3d(*self._force_area()),
-                    self._frame_rotation if in_frame else self.rotation,
+                    self._cells[True].rotation if in_frame else self.rotation,
                     const,
                     arr,
                 ],

@@ -338,6 +338,9 @@ def area_cells(
     count1 = int(0)
     total0 = int(0)
     total1 = int(0)
+    # Each side's float sum of shares, summed once in seed order: the rounding of the payout depends on it.
+    sum0 = float(0.0)
+    sum1 = float(0.0)
     overflow = int(0)
     for side in range(2):
         if ((bits >> side) & 1) == 0:
@@ -446,11 +449,13 @@ def area_cells(
             ids0 = ids
             share0 = shares
             count0 = count
+            sum0 = total
             total0 = int(wp.floor(total + 0.5))
         else:
             ids1 = ids
             share1 = shares
             count1 = count
+            sum1 = total
             total1 = int(wp.floor(total + 0.5))
     if overflow != 0:
         wp.atomic_add(diag, DIAG_OVERFLOW, 1)
@@ -460,14 +465,9 @@ def area_cells(
     # A lamp that is on but holds no positive share cannot pay out: the cell gives nothing on either side.
     for side in range(2):
         if ((bits >> side) & 1) != 0:
-            sh = share0
-            n = count0
+            s = sum0
             if side == 1:
-                sh = share1
-                n = count1
-            s = float(0.0)
-            for k in range(n):
-                s += sh[k]
+                s = sum1
             if not (s > 0.0):
                 big = 0
     if big == 0:
@@ -479,15 +479,14 @@ def area_cells(
         sh = share0
         ids = ids0
         n = count0
+        s = sum0
         sign = wp.int64(1)
         if side == 1:
             sh = share1
             ids = ids1
             n = count1
+            s = sum1
             sign = wp.int64(-1)
-        s = float(0.0)
-        for k in range(n):
-            s += sh[k]
         units = vec_seed_i()
         given = int(0)
         best = int(0)
