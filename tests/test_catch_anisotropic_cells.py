@@ -121,7 +121,8 @@ def test_porosity_on_anisotropic_cells(device, rng):
 
 def test_frame_averaging_refuses_what_it_cannot_turn(device):
     """Frame averaging turns the grid, which needs cubic cells, and turns the lamp axes, which needs one pressure:
-    anisotropic cells and a per-axis pressure are refused with errors that name ``frames``, from 2 frames on."""
+    anisotropic cells and a per-axis pressure (host or device) are refused with errors that name the argument, from
+    2 frames on, by lamp_forces and by ShiningLamp."""
     centre, r = [[0.0, 0.0, 0.0]], [0.3]
     grid = wl.LampGrid([-0.45] * 3, [0.45] * 3, CELL)
     with pytest.raises(ValueError, match=r"frames: turning a grid needs the box form with cubic cells"):
@@ -131,6 +132,17 @@ def test_frame_averaging_refuses_what_it_cannot_turn(device):
     with pytest.raises(ValueError, match=r"frames: frame averaging needs an isotropic pressure"):
         wl.lamp_forces(centre, r, PRESSURE, frames=2, device=device)
     cubic = wl.LampGrid([-0.45] * 3, [0.45] * 3, 0.05)
+    lamp = wl.ShiningLamp(cubic, frames=2, device=device)
+    pos, rad = device_arrays(centre, r, device)
+    forces = wp.zeros(1, dtype=wp.vec3, device=device)
+    lamp.update(pos, rad)
+    with pytest.raises(ValueError, match=r"frames: frame averaging needs an isotropic pressure"):
+        lamp.add_forces(forces, PRESSURE)
+    with pytest.raises(ValueError, match=r"frames: frame averaging needs an isotropic pressure"):
+        lamp.forces_numpy(PRESSURE)
+    with pytest.raises(ValueError, match=r"pressure: frame averaging needs an isotropic pressure"):
+        lamp.add_forces(forces, wp.array([1.0e6, 2.0e6, 3.0e6], dtype=wp.float32, device=device))
+    assert not forces.numpy().any()  # nothing written before the refusal
     pair = wl.lamp_forces([[-0.2, 0, 0], [0.2, 0, 0]], [0.2, 0.2], 1.0e6, grid=cubic, frames=2, device=device)
     assert np.abs(pair).max() > 0 and not pair.sum(axis=0).any()
 

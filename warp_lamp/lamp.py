@@ -143,6 +143,8 @@ _TARGET_THREADS = 1 << 18
 _MAX_SPLIT = 16
 #: Particles from which the automatic choices treat a body as large.
 _LARGE_BODY = 1 << 16
+#: Why frame averaging refuses a per-axis pressure.
+FRAMES_ISOTROPIC = "frame averaging needs an isotropic pressure (the lamp axes turn from frame to frame)"
 #: Diagnostics slots: the lamp's counters, then the area kernel's two.
 _N_DIAG = lamp_kernels.N_DIAG + 2
 
@@ -668,6 +670,7 @@ class ShiningLamp:
         if self._inputs is None:
             raise RuntimeError("add_forces: no counts yet; call ShiningLamp.update (or apply) first")
         if self.frames:
+            self._check_frames_pressure(pressure)
             for child in self.frames:
                 child.add_forces(forces, pressure)
             return
@@ -701,6 +704,15 @@ class ShiningLamp:
                 device=self.device,
             )
 
+    def _check_frames_pressure(self, pressure) -> None:
+        # The lamp axes turn from frame to frame, so a per-axis pressure would load each frame differently: only
+        # an isotropic one averages. A device array is checked by its length (reading its values would sync).
+        if isinstance(pressure, wp.array):
+            if pressure.shape[0] != 1:
+                raise ValueError(f"pressure: {FRAMES_ISOTROPIC}: a device array of 1 value, got {pressure.shape[0]}")
+        elif np.ptp(lamp_pressure(pressure, self.frames[0].grid.rotation)[0]) > 0:
+            raise ValueError(f"frames: {FRAMES_ISOTROPIC}")
+
     def apply(self, positions: wp.array, radii: wp.array, forces: wp.array, pressure, *, active=None) -> None:
         """``update`` then ``add_forces``; arguments as there."""
         self.update(positions, radii, active)
@@ -717,6 +729,7 @@ class ShiningLamp:
         """The exact float64 forces of the last update in world coordinates [N], shape (N, 3), summed over frames
         (a host copy: what :func:`lamp_forces` returns)."""
         if self.frames:
+            self._check_frames_pressure(pressure)
             return sum(child.forces_numpy(pressure) for child in self.frames)
         c = self.counts_numpy()
         f = self.force_factors(pressure)
@@ -894,7 +907,7 @@ def lamp_forces(centers, radii, pressure, *, frames: int = 1, **options) -> np.n
     p, frame = lamp_pressure(pressure, None if grid is None else grid.rotation)
     frames = _check_int("frames", frames, 1, 1 << 10)
     if frames > 1 and np.ptp(p) > 0:
-        raise ValueError("frames: frame averaging needs an isotropic pressure (the lamp axes turn from frame to frame)")
+        raise ValueError(f"frames: {FRAMES_ISOTROPIC}")
     options["device"] = check_device_match(
         options.get("device"), centers=centers, radii=radii, active=options.get("active")
     )
