@@ -480,7 +480,7 @@ class ShiningLamp:
         if self.follow and not in_frame:
             self.launch_follow()
         if self._wet is not None:
-            self._update_wetted(particles, radii, active, in_frame)
+            self._update_wetted(particles, in_frame)
             return
         if self.order.shape[0] and self._ordered_n != n and not self.device.is_capturing:
             self.reorder()
@@ -488,7 +488,7 @@ class ShiningLamp:
         self.launch_depth()
         self.launch_scatter()
 
-    def _update_wetted(self, particles, radii, active, in_frame) -> None:
+    def _update_wetted(self, particles, in_frame) -> None:
         positions = particles.positions
         if not in_frame:
             wp.launch(
@@ -499,7 +499,7 @@ class ShiningLamp:
                 device=self.device,
             )
             positions = self._frame_positions[: self.n]
-        self._wet.update(positions, radii, None if active is self._no_active else active)
+        self._wet.update(positions, particles.radii, None if particles.active is self._no_active else particles.active)
 
     def reorder(self) -> None:
         """Sort the depth pass's work on each axis by the cell under each particle, at the last update's positions
