@@ -39,22 +39,22 @@ def round_rows26(x: np.ndarray) -> np.ndarray:
     return np.where(q > 0, np.rint(x / safe) * safe, x)
 
 
-def lamp_force_factors(pressure, cell_area, rotation=None, *, unit: int = 1, weight: float = 1.0) -> np.ndarray:
+def lamp_force_factors(pressure, cell_area, rotation=None) -> np.ndarray:
     """F[j, a]: the world force component j [N] per unit count on lamp axis a, shape (3, 3).
 
-    F = P_a (A_a / unit weight) R[j, a], each row rounded by :func:`round_rows26`; the forces are
-    ``counts @ F.T``, summed in the order a = 0, 1, 2, as the device does. With the identity and ``unit`` 1 this
-    is ``diag(pressure_area)``: P_a A_a rounded to 26 bits.
+    F = P_a A_a R[j, a], each row rounded by :func:`round_rows26`; the forces are ``counts @ F.T``, summed in the
+    order a = 0, 1, 2, as the device does. With the identity this is ``diag(pressure_area)``: P_a A_a rounded to
+    26 bits.
 
     Args:
         pressure: Pressure per lamp axis [Pa], 3 values.
-        cell_area: Cell area per lamp axis [m^2], 3 values.
+        cell_area: Area per count on each lamp axis [m^2], 3 values: the cell area, divided by the area
+            criterion's units per cell and multiplied by a frame's share of an average where those apply
+            (``ShiningLamp`` passes its own).
         rotation: Lamp frame (columns: lamp axes in world coordinates); the identity by default.
-        unit: Counts per cell (the area criterion's fixed-point units; 1 for cell counts).
-        weight: Share of this frame in an average over frames.
     """
     r = lamp_rotation(rotation)
-    area = np.asarray(cell_area, dtype=np.float64) / (unit / weight)
+    area = np.asarray(cell_area, dtype=np.float64)
     p = np.asarray(pressure, dtype=np.float64)
     x = (p * area)[None, :] * r
     if not np.isfinite(x).all() or np.abs(x).max(initial=0.0) > 2.0**960:
