@@ -1,0 +1,405 @@
+"""The lamp's estimators: which particle each ray's pressure goes to (the pipeline's third stage).
+
+Each implements :class:`~warp_lamp.pipeline.Estimator` (reserve, update on checked particles, counts in units,
+diagnostics) and is picked by :class:`~warp_lamp.ShiningLamp` from its arguments:
+
+- :class:`FirstHit`: criteria 0 and 1, the memo's lamp: the first sphere each cell's ray meets takes the cell.
+- :class:`AreaSplit`: ``criterion="area"``: each cell's area is split among the spheres visible in it.
+- :class:`WettedCrossings`: ``surfaces="all"``: every crossing of the fluid's boundary along a ray is loaded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warp_lamp.grid import LampGrid
+from warp_lamp.kernels import area as area_kernels
+from warp_lamp.kernels import lamp as lamp_kernels
+from warp_lamp.kernels.footprint import RAY_CORNER
+from warp_lamp.pipeline import Estimator, LampFrame, LampInput
+from warp_lamp.validate import LAMPS, check_budget
+from warp_lamp.wetted import WettedSurface
+
+__all__ = ["AreaSplit", "FirstHit", "LampDiagnostics", "WettedCrossings", "lamp_owner_maps"]
+
+_EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+#: The area criterion's fixed-point units per cell for the exact resolver (sub-points: S^2, one per point).
+AREA_EXACT_UNIT = 4096
+#: Resolvers of the area criterion.
+AREA_RESOLVERS = ("subpoints", "exact")
+#: Threads the depth pass aims for when it splits a small body's footprints: about what an H100 holds resident
+#: (132 SMs x 2048).
+_TARGET_THREADS = 1 << 18
+#: Most threads per (sphere, axis): a footprint at 16 cells per diameter spans about 17 rows.
+_MAX_SPLIT = 16
+#: Particles from which the automatic choices treat a body as large.
+_LARGE_BODY = 1 << 16
+#: Diagnostics slots: the lamp's counters, then the area kernel's two.
+_N_DIAG = lamp_kernels.N_DIAG + 2
+
+
+def _decode_depth(keys: np.ndarray) -> np.ndarray:
+    b = (keys >> np.uint64(32)).astype(np.uint32)
+    bits = np.where(b & np.uint32(0x80000000), b ^ np.uint32(0x80000000), ~b)
+    return bits.view(np.float32).astype(np.float64)
+
+
+def lamp_owner_maps(keys: np.ndarray, grid: LampGrid, *, corners: bool = False) -> tuple[dict, dict]:
+    """Decode a lamp key array (two uint64 keys per cell, as ``ShiningLamp.keys``) into per-lamp maps.
+
+    Args:
+        keys: uint64 keys, two per cell (or per corner sample).
+        grid: The lamp grids.
+        corners: The keys belong to the (n_u + 1) x (n_v + 1) corner samples (the area criterion's slot 0).
+
+    Returns:
+        ``(owners, depths)``: per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v),
+        and the coordinate along the lamp's axis where its ray meets its owner, in the grid's frame [m] (NaN where
+        unlit).
+    """
+    owners, depths = {}, {}
+    counts = grid.counts + (1 if corners else 0)
+    first = np.concatenate([[0], np.cumsum(counts[:, 0] * counts[:, 1])[:2]])
+    for a in range(3):
+        nu, nv = (int(x) for x in counts[a])
+        for side in range(2):
+            name = LAMPS[2 * a + side]
+            k = keys[2 * first[a] + side : 2 * (first[a] + nu * nv) : 2]
+            hit = k != _EMPTY
+            own = np.where(hit, (k & np.uint64(0xFFFFFFFF)).astype(np.int64), -1)
+            dep = _decode_depth(k) * (1.0 if side == 0 else -1.0) + grid.origin[a]
+            owners[name] = own.reshape(nv, nu).T
+            depths[name] = np.where(hit, dep, np.nan).reshape(nv, nu).T
+    return owners, depths
+
+
+@dataclass
+class LampDiagnostics:
+    """What the last update found; built on demand from device arrays, outside the hot path.
+
+    Attributes:
+        counts: Signed counts per particle and axis, shape (N, 3), int64: +1 per low-lamp cell and -1 per high-lamp
+            cell for criteria 0 and 1; fixed-point units of ``unit`` per cell for the area criterion.
+        unit: Counts per whole cell (1, or the area criterion's units).
+        surface: Whether each particle is lit by any lamp that is on (for the area criterion: holds the first
+            slot of some corner sample).
+        owners: Per lamp name, the owner of each cell ``[i, j]`` (-1 where unlit), shape (n_u, n_v) (for the area
+            criterion: of each corner sample's first slot, shape (n_u + 1, n_v + 1)).
+        depths: Per lamp name, the coordinate along the lamp's axis where its ray meets its owner, in the grid's
+            frame [m] (NaN where unlit), shaped as ``owners``.
+        lit: Per lamp name, the number of lit cells (or corner samples).
+        invalid: Particles skipped as invalid (non-finite position or radius, radius <= 0).
+        outside: Particles whose projected disk pokes outside at least one grid.
+        area_overflow: Area criterion: cells whose seeds were more than the kernel keeps (the front ones are kept).
+        area_one_sided: Area criterion: cells where one lamp had units to give and the other nothing (neither pays).
+        force: Resultant force in world coordinates [N], shape (3,), when a pressure was given.
+        moment: Resultant moment about ``moment_origin`` [N m], shape (3,), when positions and pressure were given.
+        moment_origin: Point the moment is taken about [m] (the mean lit particle centre by default).
+    """
+
+    counts: np.ndarray
+    unit: int
+    surface: np.ndarray
+    owners: dict
+    depths: dict
+    lit: dict
+    invalid: int
+    outside: int
+    area_overflow: int = 0
+    area_one_sided: int = 0
+    force: np.ndarray | None = None
+    moment: np.ndarray | None = None
+    moment_origin: np.ndarray | None = None
+
+
+def _auto_split(n: int, device) -> int:
+    """The depth pass's split for n particles: 0 (one thread per sphere) on the CPU, where one thread runs the
+    launch anyway; on a GPU at least one thread per (sphere, axis), and more until the launch holds about what the
+    GPU holds resident."""
+    if not device.is_cuda or n == 0:
+        return 0
+    return int(min(_MAX_SPLIT, max(1, -(-_TARGET_THREADS // (3 * n)))))
+
+
+def _auto_order(n: int, device) -> bool:
+    """Sorted work on a GPU for bodies large enough that warps of unrelated particles thrash the L2 cache."""
+    return device.is_cuda and n >= _LARGE_BODY
+
+
+class FirstHit(Estimator):
+    """Criteria 0 and 1 (the memo's ``sl_ic``): each cell's two lamps light the first sphere their ray meets.
+
+    Each cell keeps two packed (depth, particle) keys resolved by ``atomic_min`` (``kernels/keys.py``); the update
+    is three steps: **seed** (clear the counts; re-evaluate each ray's last owner at the new positions, so that a
+    slowly moving body finds almost every cell decided), **depth** (every sphere offers its depth to every ray it
+    meets) and **scatter** (each lit cell adds +1 to its low owner's count and -1 to its high owner's).
+
+    The depth pass's work can be shared (``split`` threads per (sphere, axis)) and sorted by cell (``order``); the
+    result never depends on either.
+    """
+
+    name = "first hit"
+    steps = ("seed", "depth", "scatter")
+    #: Where the rays sit: ``None`` for the criterion's own (cell centres or rectangles).
+    _ray_kind: int | None = None
+
+    def __init__(self, frame: LampFrame, lamp_mask: int, *, criterion: int, split, order, max_bytes, depth_slots=1):
+        super().__init__(frame, lamp_mask)
+        self.criterion = criterion
+        self.depth_slots = depth_slots
+        self._ray = criterion if self._ray_kind is None else self._ray_kind
+        self._corners = self._ray_kind is not None
+        samples = self.grid.n_samples if self._corners else self.grid.n_cells
+        self.nbytes = 2 * depth_slots * samples * 8
+        check_budget(
+            self.nbytes,
+            max_bytes,
+            f"depth_slots: {depth_slots} keys per lamp on {samples:,} rays need {self.nbytes:,} bytes",
+            "raise max_bytes, lower depth_slots or use larger cells",
+        )
+        d = self.device
+        self.keys = wp.full(2 * depth_slots * samples, value=_EMPTY, dtype=wp.uint64, device=d)
+        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        self._split = split
+        self.split = 0
+        self._order = order
+        self.order = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_order = self.order
+        self._order_keys = wp.empty(0, dtype=wp.int32, device=d)
+        self._order_ids = wp.empty(0, dtype=wp.int32, device=d)
+        self._ordered_n = -1
+
+    def reserve(self, n: int) -> None:
+        """Counts for ``n`` particles; fixes the depth pass's ``split`` (and its sort buffers) for them."""
+        if not self._check_room(n, self.counts.shape[0] // 3):
+            return
+        d = self.device
+        self.counts = wp.zeros(3 * n, dtype=wp.int64, device=d)
+        self.split = _auto_split(n, d) if self._split == "auto" else int(self._split)
+        if self.depth_slots > 1:
+            self.split = max(self.split, 1)  # the D-slot depth pass is compiled for shared work only
+        sort = _auto_order(n, d) if self._order == "auto" else self._order
+        if sort and self.split > 0:
+            self.order = wp.empty(3 * n, dtype=wp.int32, device=d)
+            self._order_keys = wp.empty(2 * n, dtype=wp.int32, device=d)
+            self._order_ids = wp.empty(2 * n, dtype=wp.int32, device=d)
+            self._ordered_n = -1
+
+    def update(self, inp: LampInput) -> None:
+        """Seed, depth pass, scatter."""
+        self._input = inp
+        self.n = inp.n
+        if self.order.shape[0] and self._ordered_n != inp.n and not self.device.is_capturing:
+            self.reorder()
+        self.launch_seed()
+        self.launch_depth()
+        self.launch_scatter()
+
+    def forget(self) -> None:
+        """Empty every key, so that the next update runs cold (benchmarks; the result is the same)."""
+        wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
+
+    def reorder(self) -> None:
+        """Sort the depth pass's work on each axis by the cell under each particle, at the last update's positions
+        (a device radix sort; not inside a capture). Only with a split and ``order`` on."""
+        if not self.order.shape[0] or self._input is None:
+            return
+        inp, n = self._input, self.n
+        for a in range(3):
+            wp.launch(
+                lamp_kernels.lamp_order_keys,
+                dim=n,
+                inputs=[self._rays(), inp.particles, a],
+                outputs=[self._order_keys, self._order_ids],
+                device=self.device,
+            )
+            wp.utils.radix_sort_pairs(self._order_keys, self._order_ids, n)
+            wp.copy(self.order, self._order_ids, dest_offset=a * n, src_offset=0, count=n)
+        self._ordered_n = n
+
+    def _rays(self):
+        return self.frame.rays(self._input.in_frame, corners=self._corners)
+
+    def _cells(self):
+        return self.frame.rays(self._input.in_frame)
+
+    def launch_seed(self) -> None:
+        """Step 1: clear the counts, and re-evaluate each ray's last owners at the current positions."""
+        rays = self._rays()
+        kernel, inputs = lamp_kernels.lamp_seed, [rays, self._input.particles, self._ray]
+        if self.depth_slots > 1:
+            kernel, inputs = lamp_kernels.lamp_seed_slots, [*inputs, self.depth_slots]
+        wp.launch(
+            kernel,
+            dim=max(rays.n_cells, self.n, _N_DIAG),
+            inputs=inputs,
+            outputs=[self.keys, self.counts, self.diag],
+            device=self.device,
+        )
+
+    def launch_depth(self) -> None:
+        """Step 2: every sphere offers its depth to every ray it meets."""
+        if self.n == 0:
+            return
+        if self.depth_slots > 1:
+            kernel = lamp_kernels.lamp_depth_slots
+        else:
+            kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
+        # An order sorted for another particle count would skip particles: run unordered until the next reorder.
+        order = self.order if self._ordered_n == self.n else self._no_order
+        wp.launch(
+            kernel,
+            dim=self.n * (3 * self.split if self.split else 1),
+            inputs=[
+                self._rays(),
+                self._input.particles,
+                self._ray,
+                self.lamp_mask,
+                self.split,
+                self.depth_slots,
+                order,
+            ],
+            outputs=[self.keys, self.diag],
+            device=self.device,
+            block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
+        )
+
+    def launch_scatter(self) -> None:
+        """Step 3: each lit cell adds its +1 / -1 to its owners' counts."""
+        if self.n == 0:
+            return
+        wp.launch(
+            lamp_kernels.lamp_scatter,
+            dim=self.grid.n_cells,
+            inputs=[self._cells(), self.keys],
+            outputs=[self.counts],
+            device=self.device,
+        )
+
+    def diagnostics(self) -> LampDiagnostics:
+        """Counts, surface flags, owner and depth maps, lit cells and skip counters (host copies)."""
+        diag = self.diag.numpy()
+        counts = self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+        keys = self.keys.numpy()
+        if self._corners:
+            keys = keys.reshape(-1, self.depth_slots)[:, 0]
+        owners, depths = lamp_owner_maps(keys, self.grid, corners=self._corners)
+        surface = np.zeros(self.n, dtype=bool)
+        lit = {}
+        for name, own in owners.items():
+            hit = own >= 0
+            lit[name] = int(hit.sum())
+            surface[own[hit]] = True
+        return LampDiagnostics(
+            counts,
+            self.unit,
+            surface,
+            owners,
+            depths,
+            lit,
+            int(diag[lamp_kernels.DIAG_INVALID]),
+            int(diag[lamp_kernels.DIAG_OUTSIDE]),
+            int(diag[2]),
+            int(diag[3]),
+        )
+
+
+class AreaSplit(FirstHit):
+    """``criterion="area"``: each cell's area is split among the spheres visible in it.
+
+    The depth pass keeps, at every cell corner, the ``depth_slots`` nearest spheres per lamp; the scatter step is
+    one thread per cell that gathers them, resolves each one's visible share of the cell (on S x S sub-points, or
+    exactly) and pays both lamps the same integer number of units (:attr:`unit` per cell), so the forces still
+    balance exactly.
+    """
+
+    name = "area split"
+    _ray_kind = int(RAY_CORNER)
+
+    def __init__(self, frame: LampFrame, lamp_mask: int, *, depth_slots, resolver, subpoints, split, order, max_bytes):
+        super().__init__(
+            frame, lamp_mask, criterion="area", split=split, order=order, max_bytes=max_bytes, depth_slots=depth_slots
+        )
+        self.resolver = resolver
+        self.subpoints = subpoints
+        self.unit = AREA_EXACT_UNIT if resolver == "exact" else subpoints**2
+
+    def launch_scatter(self) -> None:
+        """Step 3: each cell shares its units among the spheres visible in it."""
+        if self.n == 0:
+            return
+        wp.launch(
+            area_kernels.area_cells,
+            dim=self.grid.n_cells,
+            inputs=[
+                self._cells(),
+                self._input.particles,
+                self.keys,
+                self.depth_slots,
+                self._rays().offset,  # where each lamp's corner samples start among the keys
+                self.lamp_mask,
+                area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
+                self.subpoints,
+                self.unit,
+            ],
+            outputs=[self.counts, self.diag[2:]],
+            device=self.device,
+        )
+
+
+class WettedCrossings(Estimator):
+    """``surfaces="all"``: every crossing of the fluid's boundary along a cell-centre ray loads the nearest sphere
+    (:class:`~warp_lamp.wetted.WettedSurface` on the lamp's voxel grid)."""
+
+    name = "wetted surface"
+    steps = ("wetted",)
+
+    def __init__(self, frame: LampFrame, lamp_mask: int, *, lamps, probe_radius, max_rounds, max_bytes):
+        super().__init__(frame, lamp_mask)
+        self.surface = WettedSurface(
+            self.grid,
+            probe_radius=probe_radius,
+            lamps=lamps,
+            max_rounds=max_rounds,
+            device=self.device,
+            max_bytes=max_bytes,
+        )
+        self.nbytes = self.surface.nbytes
+        self._frame_positions = wp.zeros(0, dtype=wp.vec3, device=self.device)
+
+    def reserve(self, n: int) -> None:
+        """The surface's per-particle buffers, and room for the frame positions."""
+        if not self._check_room(n, self.counts.shape[0] // 3):
+            return
+        self.surface.reserve(n)
+        self.counts = self.surface.counts
+        self._frame_positions = wp.zeros(n, dtype=wp.vec3, device=self.device)
+
+    def update(self, inp: LampInput) -> None:
+        """Move the positions into the frame (the voxels live there), then solve the wetted surface."""
+        self._input = inp
+        self.n = inp.n
+        self.launch_wetted()
+
+    def launch_wetted(self) -> None:
+        """The one step: frame positions, then rasterise, connect, dilate and cross (``WettedSurface``)."""
+        inp = self._input
+        positions = inp.particles.positions
+        if not inp.in_frame and self.n > 0:
+            wp.launch(
+                lamp_kernels.lamp_to_frame,
+                dim=self.n,
+                inputs=[self.frame.rays(False), inp.particles],
+                outputs=[self._frame_positions],
+                device=self.device,
+            )
+            positions = self._frame_positions[: self.n]
+        self.surface.update(positions, inp.particles.radii, inp.active)
+
+    def diagnostics(self):
+        """The wetted surface's :class:`~warp_lamp.wetted.WettedDiagnostics`."""
+        return self.surface.diagnostics()
