@@ -96,9 +96,15 @@ class LampDiagnostics:
         outside: Particles whose projected disk pokes outside at least one grid.
         area_overflow: Area criterion: cells whose seeds were more than the kernel keeps (the front ones are kept).
         area_one_sided: Area criterion: cells where one lamp had units to give and the other nothing (neither pays).
+        wall_counts: Signed counts per wall and axis, shape (W, 3), int64, as ``counts`` (the rays each wall
+            stopped before any sphere).
+        wall_owners: With walls, per lamp name, the wall that took each cell (-1: none), shaped as ``owners``
+            (which then hold only the cells a particle took).
         force: Resultant force in world coordinates [N], shape (3,), when a pressure was given.
         moment: Resultant moment about ``moment_origin`` [N m], shape (3,), when positions and pressure were given.
         moment_origin: Point the moment is taken about [m] (the mean lit particle centre by default).
+        wall_forces: Force on each wall in world coordinates [N], shape (W, 3), when a pressure was given: the
+            walls' reaction, which with the body's forces sums to P times the lamp window facing the fluid.
     """
 
     counts: np.ndarray
@@ -111,9 +117,12 @@ class LampDiagnostics:
     outside: int
     area_overflow: int = 0
     area_one_sided: int = 0
+    wall_counts: np.ndarray | None = None
+    wall_owners: dict | None = None
     force: np.ndarray | None = None
     moment: np.ndarray | None = None
     moment_origin: np.ndarray | None = None
+    wall_forces: np.ndarray | None = None
 
 
 def _auto_split(n: int, device) -> int:
@@ -172,6 +181,8 @@ class FirstHit(Estimator):
         self._order_keys = wp.empty(0, dtype=wp.int32, device=d)
         self._order_ids = wp.empty(0, dtype=wp.int32, device=d)
         self._ordered_n = -1
+        #: Signed counts per wall and axis (3 per wall), as the particles'.
+        self.wall_counts = wp.zeros(3 * frame.n_walls, dtype=wp.int64, device=d)
 
     def reserve(self, n: int) -> None:
         """Counts for ``n`` particles; fixes the depth pass's ``split`` (and its sort buffers) for them."""
@@ -269,7 +280,17 @@ class FirstHit(Estimator):
         )
 
     def launch_scatter(self) -> None:
-        """Step 3: each lit cell adds its +1 / -1 to its owners' counts."""
+        """Step 3: each lit cell adds its +1 / -1 to its owners' counts (or to a wall's that stops its ray)."""
+        if self.frame.n_walls:
+            self.wall_counts.zero_()
+            wp.launch(
+                lamp_kernels.lamp_scatter_walls,
+                dim=self.grid.n_cells,
+                inputs=[self._cells(), self.keys, self.frame.walls_view(self._input.in_frame)],
+                outputs=[self.counts, self.wall_counts],
+                device=self.device,
+            )
+            return
         if self.n == 0:
             return
         wp.launch(
@@ -282,12 +303,13 @@ class FirstHit(Estimator):
 
     def diagnostics(self) -> LampDiagnostics:
         """Counts, surface flags, owner and depth maps, lit cells and skip counters (host copies)."""
-        diag = self.diag.numpy()
-        counts = self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
-        keys = self.keys.numpy()
+        diag = self.diag.numpy().copy()
+        counts = self.counts.numpy()[: 3 * self.n].reshape(self.n, 3).copy()
+        keys = self.keys.numpy().copy()
         if self._corners:
             keys = keys.reshape(-1, self.depth_slots)[:, 0]
         owners, depths = lamp_owner_maps(keys, self.grid, corners=self._corners)
+        wall_owners = self._walled_maps(owners, depths) if self.frame.n_walls and self._input is not None else None
         surface = np.zeros(self.n, dtype=bool)
         lit = {}
         for name, own in owners.items():
@@ -305,7 +327,32 @@ class FirstHit(Estimator):
             int(diag[lamp_kernels.DIAG_OUTSIDE]),
             int(diag[2]),
             int(diag[3]),
+            self.wall_counts.numpy().reshape(-1, 3).copy(),
+            wall_owners,
         )
+
+    def _walled_maps(self, owners: dict, depths: dict) -> dict:
+        """Apply the walls to the owner and depth maps (in place), by the scatter's own decision; the walls' maps."""
+        walled = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
+        wp.launch(
+            lamp_kernels.lamp_walled_owners,
+            dim=self.grid.n_cells,
+            inputs=[self._cells(), self.keys, self.frame.walls_view(self._input.in_frame)],
+            outputs=[walled],
+            device=self.device,
+        )
+        who = walled.numpy()
+        out = {}
+        for a in range(3):
+            nu, nv = (int(x) for x in self.grid.counts[a])
+            first = int(self.grid.offsets[a])
+            for side in range(2):
+                name = LAMPS[2 * a + side]
+                w = who[2 * first + side : 2 * (first + nu * nv) : 2].reshape(nv, nu).T
+                owners[name] = np.where(w >= 0, owners[name], -1)
+                depths[name] = np.where(w >= 0, depths[name], np.nan)
+                out[name] = np.where(w <= -2, -2 - w, -1)
+        return out
 
 
 class AreaSplit(FirstHit):

@@ -38,6 +38,7 @@ from warp_lamp.validate import (
     check_positions,
     check_positive,
     check_vec3,
+    check_walls,
     check_warp_array,
     lamp_mask,
     lamp_names,
@@ -97,6 +98,7 @@ class LampOptions:
     probe_radius: float | None = None
     max_rounds: int = DEFAULT_MAX_ROUNDS
     max_bytes: float = DEFAULT_MAX_BYTES
+    walls: np.ndarray | None = None
 
     @classmethod
     def checked(
@@ -114,6 +116,7 @@ class LampOptions:
         probe_radius=None,
         max_rounds=DEFAULT_MAX_ROUNDS,
         max_bytes=DEFAULT_MAX_BYTES,
+        walls=None,
     ) -> LampOptions:
         """The options, or an error naming the first bad one."""
         if order not in ("auto", True, False):
@@ -139,6 +142,9 @@ class LampOptions:
                 raise ValueError("criterion: surfaces='all' loads crossings along the cell-centre rays (criterion 1)")
         elif probe_radius is not None:
             raise ValueError("probe_radius: only with surfaces='all'")
+        walls = check_walls(walls)
+        if len(walls) and (area or surfaces == "all"):
+            raise ValueError("walls: only with criteria 0 and 1 for now")
         return cls(
             criterion=criterion,
             lamps=lamps,
@@ -152,6 +158,7 @@ class LampOptions:
             probe_radius=probe_radius,
             max_rounds=max_rounds,
             max_bytes=max_bytes,
+            walls=walls,
         )
 
     def estimator(self, frame: LampFrame) -> Estimator:
@@ -235,6 +242,7 @@ class ShiningLamp:
         probe_radius: float | None = None,
         max_rounds: int = DEFAULT_MAX_ROUNDS,
         max_bytes: int = DEFAULT_MAX_BYTES,
+        walls=None,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -285,6 +293,14 @@ class ShiningLamp:
                 cut short and counted in the diagnostics (the balance still holds).
             max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
                 keys per corner and lamp); over it, ValueError before anything is allocated.
+            walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], the normal
+                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). A
+                ray that starts inside a wall lights nothing; a ray stops where it enters a wall, and the wall
+                takes the reaction when no sphere comes first (:meth:`diagnostics` ``wall_forces``). On an axis
+                no wall cuts, the forces still sum to zero; on one a wall cuts, the body's and the walls' forces
+                sum to P times the lamp window that faces the fluid. The planes live on the device in
+                :attr:`walls` (one ``vec4`` (n, d) each, fluid where n . x > d), which a simulator may overwrite
+                between replays.
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
@@ -301,6 +317,7 @@ class ShiningLamp:
             probe_radius=probe_radius,
             max_rounds=max_rounds,
             max_bytes=max_bytes,
+            walls=walls,
         )
         self._setup(grid, options, wp.get_device(device))
 
@@ -322,7 +339,7 @@ class ShiningLamp:
         self.follow = options.follow
         self.lamp_mask = lamp_mask(options.lamps)
         #: Stage 1 (and 2): the frame's pose and the grid's rays.
-        self.frame = LampFrame(grid, device, follow=options.follow)
+        self.frame = LampFrame(grid, device, follow=options.follow, walls=options.walls)
         #: Stage 3: who takes each ray's pressure, as counts per particle.
         self.estimator = options.estimator(self.frame)
         # A frame's share of an average (FrameAveragedLamp sets it on its lamps).
@@ -343,6 +360,11 @@ class ShiningLamp:
     def origin(self) -> wp.array:
         """The frame origin in world coordinates [m], one ``vec3`` on the device (a simulator may overwrite it)."""
         return self.frame.origin
+
+    @property
+    def walls(self) -> wp.array:
+        """The walls' planes in world coordinates, one ``vec4`` (n, d) each, fluid where n . x > d."""
+        return self.frame.walls
 
     @property
     def rotation(self) -> wp.array:
@@ -392,6 +414,7 @@ class ShiningLamp:
         # Stage 1: the frame follows the body (by whole cells), before any ray is cast.
         if self.follow and not inp.in_frame:
             self.launch_follow()
+        self.frame.launch_walls(inp.in_frame)
         # Stages 2-4: the estimator casts the rays and writes the counts.
         self.estimator.update(inp)
 
@@ -468,7 +491,8 @@ class ShiningLamp:
 
     def counts_numpy(self) -> np.ndarray:
         """Signed counts of the last update, shape (N, 3), int64 (copies to the host)."""
-        return self.estimator.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+        # .copy(): on the CPU .numpy() is a view of the device array, which the next update overwrites.
+        return self.estimator.counts.numpy()[: 3 * self.n].reshape(self.n, 3).copy()
 
     def forces_numpy(self, pressure) -> np.ndarray:
         """The exact float64 forces of the last update in world coordinates [N], shape (N, 3) (a host copy: what
@@ -476,6 +500,12 @@ class ShiningLamp:
         return exact_forces(
             self.counts_numpy(), self._host_pressure(pressure), self._area_per_unit(), self.grid.rotation
         )
+
+    def wall_forces_numpy(self, pressure) -> np.ndarray:
+        """The exact float64 force on each wall in world coordinates [N], shape (W, 3): the reaction of the rays
+        it stopped before any sphere."""
+        counts = self.estimator.wall_counts.numpy().reshape(-1, 3)
+        return exact_forces(counts, self._host_pressure(pressure), self._area_per_unit(), self.grid.rotation)
 
     def frame_origin(self) -> np.ndarray:
         """The frame origin of the last update in frame coordinates [m], float64: ``grid.origin``, moved by whole
@@ -503,6 +533,8 @@ class ShiningLamp:
             return out
         f = self.forces_numpy(pressure)
         out.force = f.sum(axis=0)
+        if self.frame.n_walls:
+            out.wall_forces = self.wall_forces_numpy(pressure)
         if positions is not None and isinstance(out, LampDiagnostics):
             x = positions
             if moment_origin is None:
@@ -689,6 +721,7 @@ def lamp_update(
     split: int | str = "auto",
     order: bool | str = "auto",
     max_bytes: int = DEFAULT_MAX_BYTES,
+    walls=None,
 ) -> ShiningLamp:
     """One lamp update on host data; returns the lamp, for its counts and :meth:`ShiningLamp.diagnostics`.
 
@@ -723,6 +756,7 @@ def lamp_update(
         split: The depth pass's threads per (sphere, axis) (:class:`ShiningLamp`; the result never depends on it).
         order: Sort the depth pass's work by cell (:class:`ShiningLamp`; the result never depends on it).
         max_bytes: Budget for the lamp's device arrays [bytes].
+        walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates (:class:`ShiningLamp`).
     """
     device = check_device_match(device, centers=centers, radii=radii, active=active)
     c, r = check_particles(centers, radii)
@@ -738,6 +772,7 @@ def lamp_update(
         split=split,
         order=order,
         max_bytes=max_bytes,
+        walls=walls,
     )
     cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
     mask = None if active is None else check_mask("active", active, c.shape[0])
@@ -769,6 +804,7 @@ def lamp_forces(
     split: int | str = "auto",
     order: bool | str = "auto",
     max_bytes: int = DEFAULT_MAX_BYTES,
+    walls=None,
 ) -> np.ndarray:
     """Shining-lamp forces on a body of spheres under fluid pressure, in world coordinates [N], float64.
 
@@ -814,6 +850,9 @@ def lamp_forces(
         split: The depth pass's threads per (sphere, axis); the result never depends on it.
         order: Sort the depth pass's work by cell; the result never depends on it.
         max_bytes: Budget for the lamp's device arrays [bytes].
+        walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], normals pointing
+            into the fluid (:class:`ShiningLamp`): a platen under a sample, or the level where the fluid stops.
+            The walls' reactions are not in the returned forces: ``lamp_update(...).wall_forces_numpy(P)``.
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
@@ -842,6 +881,7 @@ def lamp_forces(
         split=split,
         order=order,
         max_bytes=max_bytes,
+        walls=walls,
     )
     cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
     mask = None if active is None else check_mask("active", active, c.shape[0])

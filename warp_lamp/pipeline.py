@@ -27,6 +27,7 @@ from warp_lamp.frames import lamp_force_factors
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.kernels.grid import LampGridParams
+from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.validate import check_particle_arrays
 
 __all__ = ["Estimator", "LampFrame", "LampInput", "exact_forces", "lamp_input", "launch_add_forces"]
@@ -82,7 +83,7 @@ class LampFrame:
     with ``follow`` the frame moves itself by whole cells so that the body stays centred in the grid.
     """
 
-    def __init__(self, grid: LampGrid, device, *, follow: bool = False):
+    def __init__(self, grid: LampGrid, device, *, follow: bool = False, walls: np.ndarray | None = None):
         self.grid = grid
         self.device = device
         self.follow = bool(follow)
@@ -90,6 +91,24 @@ class LampFrame:
         self.origin, self.rotation = grid.pose_arrays(device)
         self._identity = grid.pose_arrays(device, in_frame=True)
         self._params = {}
+        walls = np.zeros((0, 4)) if walls is None else np.asarray(walls, dtype=np.float64)
+        #: Walls that bound the fluid.
+        self.n_walls = len(walls)
+        #: The walls' planes in world coordinates, (n, d) per wall with the fluid where n . x > d: one ``vec4`` each
+        #: on the device (a simulator may overwrite them between replays, e.g. to move a platen).
+        self.walls = wp.array(walls.astype(np.float32).reshape(-1, 4), dtype=wp.vec4, device=device)
+        # In the frame: derived on the device at each update for world positions; for positions the caller moved
+        # into the frame in float64, moved here once in float64 with the grid's own pose.
+        n_frame = walls[:, :3] @ grid.rotation
+        d_frame = walls[:, 3] - walls[:, :3] @ grid.world_origin
+        static = np.concatenate([n_frame, d_frame[:, None]], axis=1).astype(np.float32)
+        self._walls_frame = wp.zeros(self.n_walls, dtype=wp.vec4, device=device)
+        self._walls = {}
+        for in_frame, planes in ((False, self._walls_frame), (True, wp.array(static, dtype=wp.vec4, device=device))):
+            view = LampWalls()
+            view.frame = planes
+            view.n = self.n_walls
+            self._walls[in_frame] = view
         if self.follow:
             self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=device)
             self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=device)
@@ -110,6 +129,22 @@ class LampFrame:
             origin, rotation = self._identity if in_frame else (self.origin, self.rotation)
             self._params[key] = self.grid.params(origin, rotation, corners=corners)
         return self._params[key]
+
+    def walls_view(self, in_frame: bool) -> LampWalls:
+        """The walls in the frame, as the kernels read them (for world positions: as :meth:`launch_walls` last
+        placed them)."""
+        return self._walls[bool(in_frame)]
+
+    def launch_walls(self, in_frame: bool) -> None:
+        """Place the walls in the frame of the current pose (after the frame moved), for world positions."""
+        if self.n_walls and not in_frame:
+            wp.launch(
+                lamp_kernels.walls_to_frame,
+                dim=self.n_walls,
+                inputs=[self.origin, self.rotation, self.walls],
+                outputs=[self._walls_frame],
+                device=self.device,
+            )
 
     def force_rotation(self, in_frame: bool) -> wp.array:
         """The rotation that takes the last update's forces to the caller's coordinates."""

@@ -467,3 +467,45 @@ def check_particle_arrays(positions, radii, active, device, owner: str) -> int:
     if active is not None:
         check_warp_array("active", active, wp.int32, device, owner, n)
     return n
+
+
+#: Most walls a lamp takes (``kernels/walls.py``).
+MAX_WALLS = 8
+
+
+def check_walls(walls) -> np.ndarray:
+    """Walls that bound the fluid as planes, shape (W, 4) float64: unit normal (pointing from the wall into the
+    fluid) and offset d, the fluid being ``n . x > d``.
+
+    Args:
+        walls: None or an empty sequence (no walls), or a sequence of ``(point, normal)`` pairs in world
+            coordinates [m], each a 3-vector; the normal need not be unit length.
+
+    Raises:
+        ValueError: naming ``walls`` and the wall's index: not pairs of 3-vectors, non-finite, a zero normal, or
+            more than :data:`MAX_WALLS`.
+    """
+    if walls is None:
+        return np.zeros((0, 4))
+    walls = host_array(walls)
+    if isinstance(walls, (str, bytes)) or not isinstance(walls, Iterable):
+        raise ValueError(f"walls: expected a sequence of (point, normal) pairs, got {walls!r}")
+    planes = []
+    for k, wall in enumerate(walls):
+        try:
+            pair = np.asarray(wall, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"walls: wall {k} is not a (point, normal) pair of 3-vectors: {wall!r}") from None
+        if pair.shape != (2, 3):
+            raise ValueError(f"walls: wall {k} must be a (point, normal) pair of 3-vectors, got shape {pair.shape}")
+        if not np.isfinite(pair).all():
+            raise ValueError(f"walls: wall {k} has a non-finite value: {pair.tolist()}")
+        point, normal = pair
+        norm = float(np.linalg.norm(normal))
+        if not norm > 0.0:
+            raise ValueError(f"walls: wall {k} has a zero normal")
+        n = normal / norm
+        planes.append([*n, float(n @ point)])
+    if len(planes) > MAX_WALLS:
+        raise ValueError(f"walls: at most {MAX_WALLS} walls, got {len(planes)}")
+    return np.array(planes, dtype=np.float64).reshape(-1, 4)

@@ -36,3 +36,14 @@ def pack_key(depth: wp.float32, particle: wp.int32) -> wp.uint64:
 def key_owner(key: wp.uint64) -> wp.int32:
     """The particle index of a key (meaningless for EMPTY_KEY)."""
     return wp.int32(wp.uint32(key & LOW_WORD))
+
+
+@wp.func
+def key_depth(key: wp.uint64) -> wp.float32:
+    """The depth of a key (the inverse of ``ordered_bits``; meaningless for EMPTY_KEY)."""
+    b = wp.uint32(key >> wp.uint64(32))
+    if (b & SIGN_BIT) != wp.uint32(0):
+        b = b ^ SIGN_BIT
+    else:
+        b = ~b
+    return wp.cast(b, wp.float32)

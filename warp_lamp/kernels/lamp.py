@@ -10,7 +10,8 @@ import warp as wp
 
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
 from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
-from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
+from warp_lamp.kernels.keys import EMPTY_KEY, key_depth, key_owner, pack_key
+from warp_lamp.kernels.walls import WALL_BLOCKS, WALL_STOPS, LampWalls, cell_ray_base, ray_stop
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -493,6 +494,68 @@ def lamp_scatter(
 
 
 @wp.func
+def walled_owner(grid: LampGridParams, keys: wp.array[wp.uint64], walls: LampWalls, c: wp.int32, side: wp.int32):
+    """Who takes lamp ``side`` of cell c when walls bound the fluid: the particle (>= 0), wall w (-2 - w), or
+    nobody (-1): a ray that starts inside a wall lights nothing; one that enters a wall before its first sphere
+    goes to that wall."""
+    cell = grid_cell(grid, c)
+    a = cell[0]
+    stop = ray_stop(walls, a, cell_ray_base(grid, a, cell[1], cell[2]), side)
+    if stop.state == WALL_BLOCKS:
+        return -1
+    key = keys[2 * c + side]
+    lit = key != EMPTY_KEY
+    if lit and stop.state == WALL_STOPS:
+        # The key holds the entry coordinate (low lamp) or the negated exit coordinate (high lamp).
+        depth = wp.float64(key_depth(key))
+        if side == 0:
+            lit = depth <= stop.t
+        else:
+            lit = -depth >= stop.t
+    if lit:
+        return key_owner(key)
+    if stop.state == WALL_STOPS:
+        return -2 - stop.wall
+    return -1
+
+
+@wp.kernel
+def lamp_scatter_walls(
+    grid: LampGridParams,
+    keys: wp.array[wp.uint64],
+    walls: LampWalls,
+    # outputs
+    counts: wp.array[wp.int64],
+    wall_counts: wp.array[wp.int64],
+):
+    """``lamp_scatter`` with walls that bound the fluid (``walled_owner``): a wall that takes a cell counts it
+    like a particle (3 counts per wall)."""
+    c = wp.tid()
+    a = grid_cell(grid, c)[0]
+    for side in range(2):
+        owner = walled_owner(grid, keys, walls, c, side)
+        sign = wp.int64(1 - 2 * side)
+        if owner >= 0:
+            wp.atomic_add(counts, 3 * owner + a, sign)
+        elif owner <= -2:
+            wp.atomic_add(wall_counts, 3 * (-2 - owner) + a, sign)
+
+
+@wp.kernel
+def lamp_walled_owners(
+    grid: LampGridParams,
+    keys: wp.array[wp.uint64],
+    walls: LampWalls,
+    # outputs
+    owners: wp.array[wp.int32],
+):
+    """Diagnostics: ``walled_owner`` of both lamps of every cell (two per cell, as the keys)."""
+    c = wp.tid()
+    for side in range(2):
+        owners[2 * c + side] = walled_owner(grid, keys, walls, c, side)
+
+
+@wp.func
 def quantum26(x: wp.float64) -> wp.float64:
     """The spacing 2^(e - 25) of the 26-significant-bit numbers around x (2^e <= |x| < 2^(e+1)); 0 for x = 0 or
     a subnormal x, where no rounding is done."""
@@ -632,3 +695,29 @@ def lamp_to_frame(
     """Particles' frame coordinates, for the modes that work on them directly (the wetted surface)."""
     i = wp.tid()
     frame[i] = grid_to_frame(grid, particles.positions[i])
+
+
+@wp.kernel
+def walls_to_frame(
+    origin: wp.array[wp.vec3],
+    rotation: wp.array[wp.mat33],
+    world: wp.array[wp.vec4],
+    # outputs
+    frame: wp.array[wp.vec4],
+):
+    """Each wall in the frame of the current pose: n_f = R^T n, d_f = d - n . o (float64, then float32), so that a
+    simulator that moves the frame (or the walls) between replays moves the planes too."""
+    w = wp.tid()
+    p = world[w]
+    r = rotation[0]
+    o = origin[0]
+    nf = wp.vec3(0.0)
+    for k in range(3):
+        nf[k] = wp.float32(
+            (wp.float64(r[0, k]) * wp.float64(p[0]) + wp.float64(r[1, k]) * wp.float64(p[1]))
+            + wp.float64(r[2, k]) * wp.float64(p[2])
+        )
+    dot = (wp.float64(p[0]) * wp.float64(o[0]) + wp.float64(p[1]) * wp.float64(o[1])) + wp.float64(p[2]) * wp.float64(
+        o[2]
+    )
+    frame[w] = wp.vec4(nf[0], nf[1], nf[2], wp.float32(wp.float64(p[3]) - dot))

@@ -23,12 +23,44 @@ EPS32 = 2.0**-24
 
 @dataclass
 class LampReference:
-    """Reference answer. ``owners``, ``depths`` and ``ambiguous`` are per lamp name, indexed ``[i, j]``."""
+    """Reference answer. ``owners``, ``depths``, ``ambiguous`` and ``wall_owners`` are per lamp name, indexed
+    ``[i, j]``; ``wall_owners`` holds the wall that took the cell (-1: none), ``wall_counts`` (W, 3) the walls'
+    signed counts."""
 
     owners: dict
     depths: dict
     ambiguous: dict
     counts: np.ndarray
+    wall_owners: dict | None = None
+    wall_counts: np.ndarray | None = None
+
+
+def _ray_stops(walls: np.ndarray, grid: LampGrid, a: int, lo_side: bool):
+    """For every cell-centre ray of grid a: whether it starts inside a wall, the coordinate along a where it
+    first enters one (local: minus the grid origin), and that wall (-1: none), in float64 by definition: a ray
+    from its lamp's end of the axis that lies on a wall's side of the plane starts inside it."""
+    u, v = (a + 1) % 3, (a + 2) % 3
+    (cu, cv), (hu, hv), (nu, nv) = grid.corner[a], grid.cell[a], grid.counts[a]
+    pu = (cu + (np.arange(nu) + 0.5) * hu)[:, None]
+    pv = (cv + (np.arange(nv) + 0.5) * hv)[None, :]
+    blocked = np.zeros((nu, nv), dtype=bool)
+    stop = np.full((nu, nv), np.inf if lo_side else -np.inf)
+    wall = np.full((nu, nv), -1)
+    for w, (nx, ny, nz, d) in enumerate(walls):
+        n = (nx, ny, nz)
+        # n . x - d along the ray x = (pu, pv) + t e_a, in global frame coordinates.
+        g = np.broadcast_to(n[u] * pu + n[v] * pv - d, (nu, nv))
+        if n[a] == 0.0:
+            blocked |= g < 0.0
+            continue
+        if (n[a] > 0.0) == lo_side:
+            blocked[:] = True
+            continue
+        t = -g / n[a] - grid.origin[a]
+        better = t < stop if lo_side else t > stop
+        stop = np.where(better, t, stop)
+        wall = np.where(better, w, wall)
+    return blocked, stop, wall
 
 
 def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_side: bool):
@@ -92,16 +124,22 @@ def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_
     return best_id, np.where(lit, depth_global, np.nan), ambiguous
 
 
-def lamp_reference(centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None) -> LampReference:
+def lamp_reference(
+    centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None, walls=None
+) -> LampReference:
     """Owners, depths and signed counts of every lamp, in float64, by brute force over spheres and cells.
 
     Args:
-        centers: Particle centres [m], shape (N, 3).
+        centers: Particle centres [m], shape (N, 3), in the grid's frame (``R^T x``; no rotation is applied).
         radii: Particle radii [m], shape (N,).
         grid: The lamp grids.
         criterion: 1 (cell-centre ray) or 0 (cell rectangle meets the projected disk).
         lamps: "all" or names from :data:`warp_lamp.LAMPS`.
         active: Optional mask, shape (N,); inactive particles are left out.
+        walls: Optional planes (W, 4) in the same coordinates as ``centers``: unit normal n into the fluid and
+            offset d, the fluid being n . x > d. A cell-centre ray that starts inside a wall lights nothing; one
+            that enters a wall before its first sphere (the sphere's entry coordinate, or its centre for criterion
+            0, beyond the wall's) goes to that wall. Within float32 rounding of that comparison a cell is ambiguous.
     """
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -109,18 +147,32 @@ def lamp_reference(centers, radii, grid: LampGrid, *, criterion: int = 1, lamps=
     visible = np.ones(n, dtype=bool) if active is None else np.asarray(active) != 0
     local_c = c - grid.origin
     mask = lamp_mask(lamps)
-    owners, depths, ambiguous = {}, {}, {}
+    owners, depths, ambiguous, wall_owners = {}, {}, {}, {}
     counts = np.zeros((n, 3), dtype=np.int64)
+    walls = np.zeros((0, 4)) if walls is None else np.asarray(walls, dtype=np.float64).reshape(-1, 4)
+    wall_counts = np.zeros((len(walls), 3), dtype=np.int64)
     for a in range(3):
         for side in range(2):
             name = LAMPS[2 * a + side]
             shape = tuple(int(x) for x in grid.counts[a])
+            wall_owners[name] = np.full(shape, -1)
             if not mask >> (2 * a + side) & 1:
                 owners[name] = np.full(shape, -1)
                 depths[name] = np.full(shape, np.nan)
                 ambiguous[name] = np.zeros(shape, dtype=bool)
                 continue
             own, dep, amb = _lamp_cells(local_c, r, visible, grid, a, criterion, side == 0)
+            if len(walls):
+                blocked, stop, wall = _ray_stops(walls, grid, a, side == 0)
+                local = dep - grid.origin[a]
+                beyond = (local > stop) if side == 0 else (local < stop)
+                tol = 8 * EPS32 * (np.abs(local) + np.abs(np.where(np.isfinite(stop), stop, 0.0)) + 1e-30)
+                amb = amb | ((own >= 0) & (np.abs(local - stop) <= tol))
+                own = np.where(blocked | beyond, -1, own)
+                dep = np.where(own >= 0, dep, np.nan)
+                wall_owners[name] = np.where(~blocked & (own < 0) & (wall >= 0), wall, -1)
+                took = wall_owners[name][wall_owners[name] >= 0]
+                np.add.at(wall_counts[:, a], took, 1 if side == 0 else -1)
             owners[name], depths[name], ambiguous[name] = own, dep, amb
             np.add.at(counts[:, a], own[own >= 0], 1 if side == 0 else -1)
-    return LampReference(owners, depths, ambiguous, counts)
+    return LampReference(owners, depths, ambiguous, counts, wall_owners, wall_counts)
