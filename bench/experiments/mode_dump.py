@@ -97,7 +97,7 @@ def _flatten(prefix, obj, out):
         out[prefix] = np.asarray(obj)
         return
     if isinstance(obj, np.ndarray):
-        out[prefix] = obj
+        out[prefix] = obj.copy()  # on the CPU a warp array's .numpy() is a view the next update overwrites
         return
     if hasattr(obj, "__dataclass_fields__"):
         for k in obj.__dataclass_fields__:
@@ -139,9 +139,9 @@ def dump(device: str) -> dict:
             p = pressure
             lamp.add_forces(forces, p)
             key = f"{name}.s{step}"
-            out[f"{key}.forces32"] = forces.numpy()
-            out[f"{key}.forces64"] = lamp.forces_numpy(p)
-            out[f"{key}.counts"] = lamp.counts_numpy()
+            out[f"{key}.forces32"] = forces.numpy().copy()
+            out[f"{key}.forces64"] = lamp.forces_numpy(p).copy()
+            out[f"{key}.counts"] = lamp.counts_numpy().copy()
             xd = x if np.isfinite(x).all() else None
             if lkw.get("frames", 1) > 1:
                 for k, child in enumerate(lamp.frames):
