@@ -1,5 +1,5 @@
 # Sourced by every lease script: logs and JSON to $OUT, the GPU named, carried wheels installed.
-# Usage on the device machine (after ../shared/gpu's stage-warp steps):  bash bench/gpu/<script>.sh
+# Sourced by bench/gpu/lease.sh (after ../shared/gpu stage-warp steps).
 set -o pipefail
 export PYTHONUNBUFFERED=1
 OUT="${OUT:-/tmp/out}"
