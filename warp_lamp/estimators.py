@@ -98,6 +98,7 @@ class LampDiagnostics:
         area_one_sided: Area criterion: cells where one lamp had units to give and the other nothing (neither pays).
         wall_counts: Signed counts per wall and axis, shape (W, 3), int64, as ``counts`` (the rays each wall
             stopped before any sphere).
+        choice: What ``tolerance=`` chose (:class:`~warp_lamp.tolerance.LampChoice`), or None.
         wall_owners: With walls, per lamp name, the wall that took each cell (-1: none), shaped as ``owners``
             (which then hold only the cells a particle took).
         force: Resultant force in world coordinates [N], shape (3,), when a pressure was given.
@@ -119,6 +120,7 @@ class LampDiagnostics:
     area_one_sided: int = 0
     wall_counts: np.ndarray | None = None
     wall_owners: dict | None = None
+    choice: object = None
     force: np.ndarray | None = None
     moment: np.ndarray | None = None
     moment_origin: np.ndarray | None = None

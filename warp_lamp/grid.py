@@ -16,7 +16,7 @@ from warp_lamp.validate import (
     lamp_rotation,
 )
 
-__all__ = ["BYTES_PER_CELL", "LampGrid"]
+__all__ = ["BYTES_PER_CELL", "LampGrid", "LampGridSpec"]
 
 #: Bytes a cell needs on the device: one uint64 key per lamp, two lamps per cell.
 BYTES_PER_CELL = 16
@@ -142,6 +142,23 @@ class LampGrid:
         )
         lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
         return cls(lower, lower + n * h, h, rotation=rotation, max_bytes=max_bytes)
+
+    @classmethod
+    def spec(
+        cls,
+        centers,
+        radii,
+        *,
+        margin: float | None = None,
+        rotation=None,
+        probe_radius: float = 0.0,
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ) -> LampGridSpec:
+        """An enclosing grid whose cells are still to be chosen (by ``ShiningLamp(spec, tolerance=...)``):
+        :meth:`enclosing`'s arguments without ``cells_per_diameter``."""
+        return LampGridSpec(
+            centers, radii, margin=margin, rotation=rotation, probe_radius=probe_radius, max_bytes=max_bytes
+        )
 
     def _setup(self, corner, cell, counts, max_bytes, *, origin, rotation):
         counts = check_grid_cells("grid", counts, max_bytes, BYTES_PER_CELL)
@@ -311,3 +328,33 @@ class LampGrid:
             f"LampGrid(origin={self.origin.tolist()}, cells={self.counts.tolist()}, "
             f"cell={self.cell.tolist()}{rot}, {self.nbytes:,} bytes)"
         )
+
+
+class LampGridSpec:
+    """An enclosing grid around particles whose cell size is not chosen yet (:meth:`LampGrid.spec`):
+    ``ShiningLamp(spec, tolerance=...)`` chooses the cells per diameter, and :meth:`build` makes the grid."""
+
+    def __init__(self, centers, radii, *, margin=None, rotation=None, probe_radius=0.0, max_bytes=DEFAULT_MAX_BYTES):
+        """Args: as :meth:`LampGrid.enclosing`, without ``cells_per_diameter``."""
+        self.centers, self.radii = check_particles(centers, radii)
+        if len(self.radii) == 0:
+            raise ValueError("centers: need at least one particle to fit a grid")
+        self.margin = margin
+        self.rotation = lamp_rotation(rotation)
+        self.probe_radius = check_positive("probe_radius", probe_radius, allow_zero=True)
+        self.max_bytes = max_bytes
+
+    def build(self, cells_per_diameter: float = 4) -> LampGrid:
+        """The grid with ``cells_per_diameter`` cells per mean particle diameter."""
+        return LampGrid.enclosing(
+            self.centers,
+            self.radii,
+            cells_per_diameter=cells_per_diameter,
+            margin=self.margin,
+            rotation=self.rotation,
+            probe_radius=self.probe_radius,
+            max_bytes=self.max_bytes,
+        )
+
+    def __repr__(self) -> str:
+        return f"LampGridSpec({len(self.radii)} particles, margin={self.margin}, probe_radius={self.probe_radius})"

@@ -23,9 +23,10 @@ from warp_lamp.estimators import (
     lamp_owner_maps,
 )
 from warp_lamp.frames import lamp_frame_rotations, lamp_pressure, pressure_area
-from warp_lamp.grid import LampGrid
+from warp_lamp.grid import LampGrid, LampGridSpec
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.pipeline import Estimator, LampFrame, LampInput, exact_forces, lamp_input, launch_add_forces
+from warp_lamp.tolerance import LampChoice, choose_settings
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
     LAMPS,
@@ -80,6 +81,28 @@ def _check_int(name: str, value, lo: int, hi: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
         raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
     return int(value)
+
+
+#: What ``tolerance=`` chooses, with the defaults the caller must leave alone.
+_CHOSEN = {
+    "criterion": 1,
+    "resolver": "subpoints",
+    "depth_slots": 3,
+    "subpoints": 8,
+    "surfaces": "first",
+    "cells_per_diameter": 4,
+}
+
+
+def _tolerance_choice(tolerance, device, **given) -> LampChoice:
+    """``choose_settings``, after refusing, naming ``tolerance``, what it would override."""
+    names = ", ".join(sorted(k for k, v in given.items() if v != _CHOSEN[k]))
+    if names:
+        raise ValueError(
+            f"tolerance: chooses the criterion, the area settings and the cells per diameter itself; leave out "
+            f"{names} (or leave out tolerance)"
+        )
+    return choose_settings(tolerance, device)
 
 
 @dataclass(frozen=True)
@@ -243,11 +266,13 @@ class ShiningLamp:
         max_rounds: int = DEFAULT_MAX_ROUNDS,
         max_bytes: int = DEFAULT_MAX_BYTES,
         walls=None,
+        tolerance: float | None = None,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
         Args:
-            grid: The lamp grids.
+            grid: The lamp grids, or a :class:`~warp_lamp.grid.LampGridSpec` (``LampGrid.spec(centers, radii)``)
+                whose cells ``tolerance`` chooses (4 per mean diameter without ``tolerance``).
             criterion: 1, a cell is lit where its centre ray meets the sphere (depth where the ray enters for
                 the low lamp, leaves for the high lamp); 0, where the cell rectangle meets the projected disk
                 (depth of the sphere centre on both sides): the memo's ``sl_ic``. ``"area"``: each cell's area is
@@ -301,7 +326,40 @@ class ShiningLamp:
                 sum to P times the lamp window that faces the fluid. The planes live on the device in
                 :attr:`walls` (one ``vec4`` (n, d) each, fluid where n . x > d), which a simulator may overwrite
                 between replays.
+            tolerance: Ask for accuracy instead of settings: the largest acceptable RMS per-particle force error,
+                as a fraction of P pi rbar^2 (0.01 is 1%). The lamp then takes the cheapest estimator and cells per
+                diameter that meet it in the speed-error table the package ships (:mod:`warp_lamp.tolerance` says
+                the rule, the scenes and what it does not promise); needs a ``LampGridSpec`` as ``grid`` and
+                leaves ``criterion`` and the area settings to the choice. :attr:`choice` (and
+                :meth:`diagnostics`) say what was chosen.
         """
+        device = wp.get_device(device)
+        #: What ``tolerance=`` chose (None without it).
+        self.choice = None
+        if isinstance(grid, LampGridSpec):
+            if tolerance is not None:
+                self.choice = _tolerance_choice(
+                    tolerance,
+                    device,
+                    criterion=criterion,
+                    resolver=resolver,
+                    depth_slots=depth_slots,
+                    subpoints=subpoints,
+                    surfaces=surfaces,
+                )
+                chosen = self.choice.options()
+                criterion = chosen["criterion"]
+                resolver = chosen.get("resolver", resolver)
+                depth_slots = chosen.get("depth_slots", depth_slots)
+                subpoints = chosen.get("subpoints", subpoints)
+                grid = grid.build(self.choice.cells_per_diameter)
+            else:
+                grid = grid.build()
+        elif tolerance is not None:
+            raise ValueError(
+                "tolerance: chooses the cells per diameter, so it needs a grid spec: "
+                "ShiningLamp(LampGrid.spec(centers, radii), tolerance=...)"
+            )
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         options = LampOptions.checked(
@@ -319,12 +377,13 @@ class ShiningLamp:
             max_bytes=max_bytes,
             walls=walls,
         )
-        self._setup(grid, options, wp.get_device(device))
+        self._setup(grid, options, device)
 
     @classmethod
     def _build(cls, grid: LampGrid, options: LampOptions, device) -> ShiningLamp:
         """A lamp from options already checked (the host functions check them once for every frame)."""
         self = object.__new__(cls)
+        self.choice = None
         self._setup(grid, options, device)
         return self
 
@@ -529,6 +588,8 @@ class ShiningLamp:
         if moment_origin is not None:
             moment_origin = check_vec3("moment_origin", moment_origin)
         out = self.estimator.diagnostics()
+        if isinstance(out, LampDiagnostics):
+            out.choice = self.choice
         if pressure is None:
             return out
         f = self.forces_numpy(pressure)
@@ -554,8 +615,10 @@ class FrameAveragedLamp:
     device array of one value): the lamp axes turn from frame to frame.
     """
 
-    def __init__(self, grid: LampGrid, *, frames: int, device=None, follow: bool = False, **options):
-        """Args: as :class:`ShiningLamp` (``frames`` >= 2; ``follow`` is not supported)."""
+    def __init__(self, grid: LampGrid, *, frames: int, device=None, follow: bool = False, tolerance=None, **options):
+        """Args: as :class:`ShiningLamp` (``frames`` >= 2; ``follow`` and ``tolerance`` are not supported)."""
+        if tolerance is not None:
+            raise ValueError("tolerance: not with frame averaging (its table is measured for one frame)")
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         frames = _check_int("frames", frames, 2, 1 << 10)
@@ -805,6 +868,7 @@ def lamp_forces(
     order: bool | str = "auto",
     max_bytes: int = DEFAULT_MAX_BYTES,
     walls=None,
+    tolerance: float | None = None,
 ) -> np.ndarray:
     """Shining-lamp forces on a body of spheres under fluid pressure, in world coordinates [N], float64.
 
@@ -853,6 +917,9 @@ def lamp_forces(
         walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], normals pointing
             into the fluid (:class:`ShiningLamp`): a platen under a sample, or the level where the fluid stops.
             The walls' reactions are not in the returned forces: ``lamp_update(...).wall_forces_numpy(P)``.
+        tolerance: Ask for accuracy instead of settings: the largest acceptable RMS per-particle force error, as a
+            fraction of P pi rbar^2; the cheapest criterion, area settings and cells per diameter that meet it in
+            the package's speed-error table are used (:mod:`warp_lamp.tolerance`; leave those arguments out).
 
     Returns:
         Forces [N] (units of pressure times length squared), shape (N, 3), float64.
@@ -869,6 +936,24 @@ def lamp_forces(
         raise ValueError(f"frames: {FRAMES_ISOTROPIC}")
     device = check_device_match(device, centers=centers, radii=radii, active=active)
     c, r = check_particles(centers, radii)
+    if tolerance is not None:
+        if grid is not None:
+            raise ValueError("tolerance: chooses the cells per diameter, so leave out grid (or leave out tolerance)")
+        chosen = _tolerance_choice(
+            tolerance,
+            device,
+            criterion=criterion,
+            resolver=resolver,
+            depth_slots=depth_slots,
+            subpoints=subpoints,
+            surfaces=surfaces,
+            cells_per_diameter=cells_per_diameter,
+        )
+        cells_per_diameter = chosen.cells_per_diameter
+        opts = chosen.options()
+        criterion = opts["criterion"]
+        resolver, depth_slots = opts.get("resolver", resolver), opts.get("depth_slots", depth_slots)
+        subpoints = opts.get("subpoints", subpoints)
     options = LampOptions.checked(
         criterion=criterion,
         lamps=lamps,

@@ -1,0 +1,89 @@
+"""tolerance=: the cheapest setting whose table error meets the tolerance (warp_lamp.tolerance)."""
+
+import numpy as np
+import pytest
+
+import warp_lamp as wl
+from warp_lamp.bench_modes import P, exact_areas
+from warp_lamp.measures import visible_area_error
+from warp_lamp.scenes import scene_lattice_ball
+from warp_lamp.tolerance import choose_settings, load_table
+
+
+def _row(criterion, k, error, ratio, **area):
+    return {"criterion": criterion, "cells_per_diameter": k, "error": error, "ratio": {"cpu": ratio}, **area}
+
+
+SYNTHETIC = {
+    "kinds": {"cpu": {}},
+    "rows": [
+        _row(1, 4, 0.10, 1.0),
+        _row(1, 8, 0.03, 3.0),
+        _row(1, 16, 0.011, 12.0),
+        _row("area", 2, 0.05, 2.0, resolver="subpoints", depth_slots=3, subpoints=8),
+        _row("area", 4, 0.004, 9.0, resolver="subpoints", depth_slots=3, subpoints=8),
+        _row("area", 4, 0.0002, 90.0, resolver="exact", depth_slots=4),
+    ],
+}
+
+
+@pytest.mark.parametrize(
+    ("tol", "want"),
+    [(0.2, (1, 4)), (0.06, ("area", 2)), (0.03, (1, 8)), (0.01, ("area", 4)), (0.001, ("area", 4))],
+)
+def test_the_cheapest_eligible_setting_is_chosen(tol, want):
+    """Among the settings whose error meets the tolerance, the one with the smallest time ratio wins."""
+    c = choose_settings(tol, "cpu", table=SYNTHETIC)
+    assert (c.criterion, c.cells_per_diameter) == want
+    assert c.error <= tol
+    cheaper = [r for r in SYNTHETIC["rows"] if r["ratio"]["cpu"] < c.time_ratio]
+    assert all(r["error"] > tol for r in cheaper)
+
+
+def test_a_tolerance_no_setting_reaches_is_refused_by_name():
+    """A tolerance tighter than the table's best, or not a positive number, raises naming ``tolerance``."""
+    with pytest.raises(ValueError, match=r"tolerance: 1e-05 is tighter than any setting"):
+        choose_settings(1e-5, "cpu", table=SYNTHETIC)
+    for bad in (0.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="tolerance"):
+            choose_settings(bad, "cpu", table=SYNTHETIC)
+    with pytest.raises(TypeError, match="tolerance"):
+        choose_settings("0.01", "cpu", table=SYNTHETIC)
+
+
+def test_tolerance_leaves_the_settings_to_the_choice():
+    """Explicit criterion, cells or a grid beside ``tolerance`` are refused, naming what to leave out."""
+    ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    c, r = ball.centers, ball.radii
+    with pytest.raises(ValueError, match="tolerance: .* leave out cells_per_diameter, criterion"):
+        wl.lamp_forces(c, r, P, tolerance=0.05, criterion="area", cells_per_diameter=8, device="cpu")
+    with pytest.raises(ValueError, match="tolerance: .* leave out grid"):
+        wl.lamp_forces(c, r, P, tolerance=0.05, grid=wl.LampGrid.enclosing(c, r), device="cpu")
+    with pytest.raises(ValueError, match=r"tolerance: .* needs a grid spec"):
+        wl.ShiningLamp(wl.LampGrid.enclosing(c, r), tolerance=0.05, device="cpu")
+
+
+@pytest.mark.parametrize("tol", [0.1, 0.03])
+def test_the_choice_runs_and_meets_the_tolerance_on_a_ball(device, tol):
+    """lamp_forces(tolerance=t) equals the chosen settings given explicitly, and its measured error is <= t."""
+    ball = scene_lattice_ball()
+    c, r = ball.centers, ball.radii
+    choice = choose_settings(tol, device)
+    f = wl.lamp_forces(c, r, P, tolerance=tol, device=device)
+    g = wl.lamp_forces(c, r, P, cells_per_diameter=choice.cells_per_diameter, device=device, **choice.options())
+    np.testing.assert_array_equal(f, g)
+    err = visible_area_error(f, exact_areas(ball)[0], P, float(r.mean()))["rms"]
+    assert err <= tol
+    lamp = wl.ShiningLamp(wl.LampGrid.spec(c, r), tolerance=tol, device=device)
+    assert lamp.choice == choice
+    assert lamp.diagnostics().choice == choice
+
+
+def test_the_shipped_table_covers_every_candidate_on_the_cpu():
+    """The package's table has an error and a CPU time for every setting, criterion 1 at 4 as its unit."""
+    table = load_table()
+    rows = table["rows"]
+    assert {r["criterion"] for r in rows} == {1, "area"}
+    assert all(r["error"] > 0 and r["ratio"]["cpu"] > 0 for r in rows)
+    unit = [r for r in rows if r["criterion"] == 1 and r["cells_per_diameter"] == 4]
+    assert len(unit) == 1 and unit[0]["ratio"]["cpu"] == 1.0

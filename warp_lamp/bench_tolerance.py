@@ -1,0 +1,209 @@
+"""The speed-error table behind ``tolerance=`` (:mod:`warp_lamp.tolerance`): measure it, and check its choices.
+
+``measure_table`` runs every candidate setting on the table's scenes (errors: device-independent, against the
+exact visible areas) and times it on one device (graph replay on CUDA); ``merge_kind`` adds another device kind's
+times to a table; ``check_tolerance`` asks for a range of tolerances and measures what each choice really gives,
+on the table's scenes and on a scene held out of the table.
+
+    python -m warp_lamp.bench_tolerance --device cpu --out table.json            # errors + CPU times
+    python -m warp_lamp.bench_tolerance --device cuda:0 --times-only --merge table.json --out table.json
+    python -m warp_lamp.bench_tolerance --check table.json --device cpu
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+import warp as wp
+
+from warp_lamp.bench_modes import P, exact_areas, time_update
+from warp_lamp.grid import LampGrid
+from warp_lamp.lamp import ShiningLamp
+from warp_lamp.measures import visible_area_error
+from warp_lamp.scenes import Scene, scene_lattice_ball, scene_sphere_specimen
+from warp_lamp.timing import run_header
+from warp_lamp.tolerance import LampChoice, choose_settings, device_kind
+
+__all__ = ["SETTINGS", "check_tolerance", "held_out_scene", "measure_table", "merge_kind", "table_scenes"]
+
+#: Candidate settings: (criterion, resolver, depth_slots, subpoints, cells per diameter).
+SETTINGS = (
+    *[(1, None, None, None, k) for k in (2, 3, 4, 6, 8, 12, 16, 24, 32)],
+    *[("area", "subpoints", 3, 8, k) for k in (2, 3, 4)],
+    *[("area", "subpoints", 2, 4, k) for k in (2, 3, 4)],
+    *[("area", "exact", d, None, k) for d in (3, 4) for k in (2, 3, 4)],
+)
+#: Tolerances the check asks for.
+CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005)
+
+
+def table_scenes() -> dict[str, Scene]:
+    """The scenes whose errors make the table: the SphereTest specimen (dense random packing) and a lattice ball
+    (ordered), both of radius ratio 1.66."""
+    return {"specimen": scene_sphere_specimen(), "lattice ball": scene_lattice_ball()}
+
+
+def held_out_scene() -> Scene:
+    """A scene the table never saw: the SphereTest specimen's generator with another seed (another packing)."""
+    return scene_sphere_specimen(seed=7)
+
+
+def _options(criterion, resolver, slots, subpoints) -> dict:
+    if criterion != "area":
+        return {"criterion": criterion}
+    out = {"criterion": "area", "resolver": resolver, "depth_slots": slots}
+    if subpoints is not None:
+        out["subpoints"] = subpoints
+    return out
+
+
+def _lamp(scene: Scene, options: dict, cells_per_diameter: float, device) -> ShiningLamp:
+    grid = LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=cells_per_diameter)
+    return ShiningLamp(grid, device=device, **options)
+
+
+def setting_error(scene: Scene, options: dict, cells_per_diameter: float, device) -> float:
+    """RMS per-particle force error of one setting on one scene, over P pi rbar^2 (``visible_area_error``)."""
+    lamp = _lamp(scene, options, cells_per_diameter, device)
+    pos = wp.array(lamp.grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=lamp.device)
+    rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=lamp.device)
+    lamp.update(pos, rad, in_frame=True)
+    exact, _ = exact_areas(scene)
+    return visible_area_error(lamp.forces_numpy(P), exact, P, float(scene.radii.mean()))["rms"]
+
+
+def _times(device, repeats: int, timing_scene: Scene) -> list[float]:
+    out = []
+    for criterion, resolver, slots, s, k in SETTINGS:
+        lamp = _lamp(timing_scene, _options(criterion, resolver, slots, s), k, device)
+        out.append(time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"])
+    return out
+
+
+def _kind_of(device) -> str:
+    d = wp.get_device(device)
+    if not d.is_cuda:
+        return "cpu"
+    for k in ("h100", "h200", "a100", "l40", "b200"):
+        if k in d.name.lower():
+            return k
+    return "cuda"
+
+
+def measure_table(device="cpu", *, repeats: int = 5, errors_device="cpu") -> dict:
+    """Errors of every setting on :func:`table_scenes` (on ``errors_device``), and its update time on ``device``
+    (the specimen; graph replay on CUDA, eager on the CPU)."""
+    scenes = table_scenes()
+    rows = []
+    for criterion, resolver, slots, s, k in SETTINGS:
+        opts = _options(criterion, resolver, slots, s)
+        err = {name: setting_error(sc, opts, k, errors_device) for name, sc in scenes.items()}
+        rows.append(
+            {
+                "criterion": criterion,
+                "resolver": resolver,
+                "depth_slots": slots,
+                "subpoints": s,
+                "cells_per_diameter": k,
+                "errors": err,
+                "error": max(err.values()),
+            }
+        )
+    table = {
+        "rule": "error = max over scenes of the RMS per-particle force error over P pi rbar^2 (surface particles); "
+        "ratio = update time over criterion 1 at 4 cells per diameter on the same device kind (the specimen)",
+        "scenes": list(scenes),
+        "held_out": held_out_scene.__doc__,
+        "rows": rows,
+        "kinds": {},
+    }
+    return merge_kind(table, device, repeats=repeats)
+
+
+def merge_kind(table: dict, device, *, repeats: int = 5) -> dict:
+    """Time every setting on ``device`` and add its kind's times and ratios to ``table`` (in place)."""
+    kind = _kind_of(device)
+    times = _times(device, repeats, scene_sphere_specimen())
+    base = next(t for t, s in zip(times, SETTINGS, strict=True) if s[0] == 1 and s[4] == 4)
+    for row, t in zip(table["rows"], times, strict=True):
+        row.setdefault("time_s", {})[kind] = t
+        row.setdefault("ratio", {})[kind] = t / base
+    table["kinds"][kind] = run_header([device])
+    return table
+
+
+def check_tolerance(table: dict, device="cpu", *, tolerances=CHECK_TOLERANCES) -> list[dict]:
+    """For each tolerance: the choice on ``device``'s kind and the error it really gives on every table scene and
+    on the held-out scene (``ok``: every measured error within the tolerance)."""
+    scenes = {**table_scenes(), "held out": held_out_scene()}
+    out = []
+    for tol in tolerances:
+        try:
+            choice: LampChoice = choose_settings(tol, device, table=table)
+        except ValueError as e:
+            out.append({"tolerance": tol, "choice": None, "reason": str(e)})
+            continue
+        measured = {
+            name: setting_error(sc, choice.options(), choice.cells_per_diameter, device) for name, sc in scenes.items()
+        }
+        out.append(
+            {
+                "tolerance": tol,
+                "choice": choice.describe(),
+                "kind": device_kind(device, table),
+                "measured": measured,
+                "ok": all(v <= tol for v in measured.values()),
+            }
+        )
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="Measure or check the speed-error table behind tolerance=.")
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--out", help="write the table (JSON) here")
+    ap.add_argument("--merge", help="an existing table: add this device's times to it (with --times-only)")
+    ap.add_argument("--times-only", action="store_true")
+    ap.add_argument("--check", metavar="TABLE", help="check a table's choices on this device")
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    t0 = time.perf_counter()
+    if args.check:
+        with open(args.check, encoding="utf-8") as f:
+            table = json.load(f)
+        rows = check_tolerance(table, args.device)
+        for r in rows:
+            if r["choice"] is None:
+                print(f"| {r['tolerance']:g} | none: {r['reason']} |")
+                continue
+            m = ", ".join(f"{k} {100 * v:.3g}%" for k, v in r["measured"].items())
+            print(f"| {r['tolerance']:g} | {r['choice']} | {m} | {'ok' if r['ok'] else 'MISSED'} |")
+        if args.out:
+            with open(args.out, "w", encoding="utf-8") as f:
+                json.dump({"check": rows, "device": run_header([args.device])}, f, indent=1)
+        return 0 if all(r.get("ok", True) for r in rows) else 1
+    if args.times_only:
+        if not args.merge:
+            ap.error("--times-only needs --merge TABLE")
+        with open(args.merge, encoding="utf-8") as f:
+            table = merge_kind(json.load(f), args.device, repeats=args.repeats)
+    else:
+        table = measure_table(args.device, repeats=args.repeats)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as f:
+            json.dump(table, f, indent=1)
+    for row in table["rows"]:
+        ratios = ", ".join(f"{k} {v:.3g}x" for k, v in row.get("ratio", {}).items())
+        name = row["criterion"] if row["criterion"] != "area" else f"area {row['resolver']} D{row['depth_slots']}"
+        print(f"| {name} | {row['cells_per_diameter']:g} | {100 * row['error']:.3g}% | {ratios} |")
+    print(f"({time.perf_counter() - t0:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
