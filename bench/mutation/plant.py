@@ -65,8 +65,8 @@ BUGS = [
         "cell_area_host",
         "non-cubic cells",
         "warp_lamp/lamp.py",
-        "return self.grid.cell_area / (self.unit / self._weight)",
-        "return np.full(3, self.grid.cell_area[0]) / (self.unit / self._weight)",
+        "return self.grid.cell_area / (self.estimator.unit / self._weight)",
+        "return np.full(3, self.grid.cell_area[0]) / (self.estimator.unit / self._weight)",
         ANISO,
     ),
     Bug(
