@@ -141,7 +141,9 @@ def lamp_cases(coll, *, quick: bool = False) -> list[dict]:
         out += lamp_case(coll, "criterion 0, lattice ties", *lattice, g_lat, split, criterion=0)
         out += lamp_case(coll, "criterion 1, lattice ties", *lattice, g_lat, split, criterion=1)
         out += lamp_case(coll, "criterion 1, random", *rand, g_rand, split, criterion=1)
-        out += lamp_case(coll, "criterion 0, lamps -x +y +z", *rand, g_rand, split, criterion=0, lamps=("-x", "+y", "+z"))
+        out += lamp_case(
+            coll, "criterion 0, lamps -x +y +z", *rand, g_rand, split, criterion=0, lamps=("-x", "+y", "+z")
+        )
         out += lamp_case(coll, "area, subpoints, D=3", *rand, g_rand, split, criterion="area", depth_slots=3)
         out += lamp_case(coll, "criterion 1, invalid and inactive", c_bad, r_bad, g_rand, split, active=active)
         if not quick:

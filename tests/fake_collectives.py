@@ -75,13 +75,13 @@ class FakeNcclCommunicator:
     def device_id(self) -> int:
         return 0
 
-    def allReduce(self, sendbuf, recvbuf, count, datatype, op, stream):  # noqa: N802 (CuPy's name)
+    def allReduce(self, sendbuf, recvbuf, count, datatype, op, stream):
         self.streams.add(stream)
         dtype = _DTYPES[datatype]
         parts = self.world.exchange(self.rank, _view(sendbuf, count, dtype))
         _view(recvbuf, count, dtype)[:] = _REDUCE[op](np.stack(parts), axis=0)
 
-    def allGather(self, sendbuf, recvbuf, count, datatype, stream):  # noqa: N802
+    def allGather(self, sendbuf, recvbuf, count, datatype, stream):
         self.streams.add(stream)
         dtype = _DTYPES[datatype]
         parts = self.world.exchange(self.rank, _view(sendbuf, count, dtype))
@@ -116,7 +116,7 @@ def run_ranks(collectives, fn) -> list:
     def body(r):
         try:
             results[r] = fn(collectives[r])
-        except BaseException as e:  # noqa: BLE001 (re-raised below, after every thread ends)
+        except BaseException as e:
             errors[r] = e
             collectives[r].comm.world.barrier.abort()
 

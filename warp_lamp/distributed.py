@@ -48,11 +48,19 @@ from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import distributed as dist_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.kernels.footprint import RAY_CORNER
-from warp_lamp.lamp import LampDiagnostics, lamp_owner_maps
 
-# The coupling to ShiningLamp's internals, all of it: its constants and automatic choices, so that both lamps
-# split and order the depth pass alike (the result does not depend on either).
-from warp_lamp.lamp import AREA_EXACT_UNIT, AREA_RESOLVERS, _auto_order, _auto_split, _check_criterion
+# The coupling to ShiningLamp, all of it: public helpers (owner maps, diagnostics, the area units), and three
+# internals, its criterion check and its automatic split and order of the depth pass, so that both lamps share out
+# the work alike (the result depends on neither).
+from warp_lamp.lamp import (
+    AREA_EXACT_UNIT,
+    AREA_RESOLVERS,
+    LampDiagnostics,
+    _auto_order,
+    _auto_split,
+    _check_criterion,
+    lamp_owner_maps,
+)
 from warp_lamp.porosity import (
     POROSITY_METHODS,
     count_bitmap,
@@ -1355,5 +1363,3 @@ def _agreed_midpoint_algorithm(coll: Collective, radii, hs, sub) -> int:
         return 1
     k = float(sub[0] * sub[1] * sub[2])
     return 2 if 4.0 / 3.0 * math.pi * float(total) > 8.0 * k * rmax**3 else 1
-
-

@@ -258,7 +258,9 @@ def dist_or_gathered(
 
 
 @wp.func
-def add_units(solid: wp.array3d[wp.int64], cell: wp.vec3i, v: wp.float64, scale: wp.float64, overflow: wp.array[wp.int32]):
+def add_units(
+    solid: wp.array3d[wp.int64], cell: wp.vec3i, v: wp.float64, scale: wp.float64, overflow: wp.array[wp.int32]
+):
     """Add v [m^3] to a cell as round(v scale) fixed-point units: an integer sum, the same in every order and every
     split of the spheres. An add that would pass 2^63 (or a single volume of 2^63 units) is counted in
     ``overflow`` and left out."""
