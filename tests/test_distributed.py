@@ -73,7 +73,7 @@ def test_nccl_path_on_thread_ranks(ranks):
     assert colls[0].comm.streams == {0}  # the CPU's stand-in for Warp's stream
 
 
-def test_mpi_processes():
+def test_mpi_processes(tmp_path):
     """Two MPI processes (mpiexec from the mpich wheel, over mpi4py) on the CPU: forces bitwise equal to one process
     for criteria 0, 1, a lamp subset and the area criterion on random, interleaved, spatial and lopsided splits,
     the agreed enclosing grid equal to LampGrid.enclosing, and porosity equal for each method."""
@@ -82,13 +82,12 @@ def test_mpi_processes():
         pytest.skip("needs mpi4py and mpiexec: pip install '.[distributed]' (mpi4py and the mpich wheel)")
     # Compile every kernel once here, so that the two ranks load them from the cache instead of both compiling.
     distributed_cases.lamp_cases(LocalCollective("cpu"), quick=True)
-    out = Path(os.environ.get("PYTEST_TMP", "/tmp")) / f"distributed-mpi-{os.getpid()}.json"
+    out = tmp_path / "ranks.json"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     cmd = [mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "distributed_ranks.py"), "--json", str(out)]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     summary = json.loads(out.read_text())
-    out.unlink()
     assert summary["ranks"] == 2 and summary["ok"] and summary["failed"] == 0
     cases = [r["case"] for r in summary["per_rank"][0]["results"]]
     for needle in ("criterion 0", "criterion 1", "lamps -x +y +z", "area", "follow", "enclosing grid", "porosity"):

@@ -1092,7 +1092,9 @@ class DistributedLamp:
         mine = self.gids.numpy() if self.n else np.zeros(0, np.int32)
         rows = self.caller.numpy() if self.caller.shape[0] else np.arange(self.n)
         surface = np.zeros(self.n, dtype=bool)
-        lit_ids = np.unique(np.concatenate([own[own >= 0].ravel() for own in owners.values()] + [np.zeros(0)]))
+        lit_ids = np.unique(
+            np.concatenate([own[own >= 0].ravel() for own in owners.values()] + [np.zeros(0, np.int64)])
+        )
         surface[rows[np.isin(mine, lit_ids)]] = True
         diag = self.diag.numpy().astype(np.int64)
         skipped = self.comm.allreduce_host(diag[:2].copy(), "sum")
