@@ -89,6 +89,7 @@ __all__ = [
     "FIXED_POINT_BITS",
     "WETTED_REFUSAL",
     "Collective",
+    "DistributedDiagnostics",
     "DistributedLamp",
     "LocalCollective",
     "MPICollective",
