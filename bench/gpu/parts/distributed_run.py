@@ -4,13 +4,14 @@
     python3 bench/gpu/parts/distributed_run.py table $OUT/ranks1.json $OUT/ranks2.json \
         --json $OUT/h100-x2-distributed.json
 
-``run``: on 2 or more ranks, the correctness cases of ``tests/distributed_cases.py`` on CUDA (NCCL through CuPy, and
-through torch.distributed), then, on any number of ranks, the lattice boxes (8M and 27M: strong scaling; 13.5M on
-one rank: weak scaling's base) split in slabs along x: the update's eager and graph-replay times, its steps
-(the rank's depth pass, keys to global ids, the all-reduce alone, the scatter), the all-reduce's bytes, and the
-rank's counts compared bitwise with ``ShiningLamp`` holding every particle on the same GPU. A random split of the 8M
-box is checked bitwise too. On one rank, ``ShiningLamp``'s own times are the baseline. ``--device cpu`` (Gloo)
-runs the same on the CPU at small sizes, to test this script without GPUs.
+``run`` (``--part checks``, ``scale`` or ``all``): on 2 or more ranks, the correctness cases of
+``tests/distributed_cases.py`` on CUDA (NCCL through CuPy, and through torch.distributed); on any number of ranks,
+the lattice boxes (8M and 27M: strong scaling; 13.5M on one rank: weak scaling's base) split in slabs along x: the
+update's eager and graph-replay times, its steps (the rank's depth pass, keys to global ids, the all-reduce alone,
+the scatter), the all-reduce's bytes, and the rank's counts (eager, and after a cold graph replay) compared bitwise
+with ``ShiningLamp`` holding every particle on the same GPU. A random split of the 8M box is checked bitwise too.
+On one rank, ``ShiningLamp``'s own times are the baseline. ``--device cpu`` (Gloo) runs the same on the CPU at small
+sizes, to test this script without GPUs.
 
 ``table``: the per-rank-count files combined into one result file and a table, with the ratio to one GPU.
 """
@@ -218,7 +219,7 @@ def cmd_run(args) -> int:
     main_name = "cupy-nccl" if "cupy-nccl" in collectives else "torch"
     coll = collectives[main_name]
     mine = {"checks": {}, "scale": []}
-    if size >= 2:
+    if size >= 2 and args.part in ("all", "checks"):
         for name, c in collectives.items():
             t0 = time.perf_counter()
             results = distributed_cases.all_cases(c, quick=args.quick)
@@ -230,6 +231,8 @@ def cmd_run(args) -> int:
     sizes = [tuple(int(x) for x in s.split("x")) for s in args.sizes.split(",")] if args.sizes else list(STRONG)
     if size == 1 and not args.sizes:
         sizes.append(WEAK_BASE)
+    if args.part == "checks":
+        sizes = []
     for n3 in sizes:
         scene, grid = _lattice(n3)
         label = f"lattice {n3[0]}x{n3[1]}x{n3[2]}"
@@ -357,7 +360,9 @@ def cmd_table(args) -> int:
     out = {
         "runs": [{k: v for k, v in run.items() if k != "rank_results"} for run in runs],
         "checks": {
-            str(run["ranks"]): {r: part.get("checks", {}) for r, part in run["rank_results"].items()} for run in runs
+            str(run["ranks"]): {r: part["checks"] for r, part in run["rank_results"].items()}
+            for run in runs
+            if any(part.get("checks") for part in run["rank_results"].values())
         },
         "torch_capture": captures,
         "one_gpu": list(base.values()),
@@ -412,6 +417,9 @@ def main() -> int:
     run.add_argument("--sizes", help="lattice sizes, e.g. 200x200x200,300x300x300 (default: 8M, 27M; +13.5M on 1)")
     run.add_argument("--repeats", type=int, default=20)
     run.add_argument("--quick", action="store_true", help="fewer correctness cases")
+    run.add_argument(
+        "--part", choices=("all", "checks", "scale"), default="all", help="the correctness cases, the timings, or both"
+    )
     table = sub.add_parser("table", help="combine the runs' files")
     table.add_argument("files", nargs="+")
     table.add_argument("--json")
