@@ -55,9 +55,9 @@ def test_tolerance_leaves_the_settings_to_the_choice():
     """Explicit criterion, cells or a grid beside ``tolerance`` are refused, naming what to leave out."""
     ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
     c, r = ball.centers, ball.radii
-    with pytest.raises(ValueError, match="tolerance: .* leave out cells_per_diameter, criterion"):
+    with pytest.raises(ValueError, match=r"tolerance: .* leave out cells_per_diameter, criterion"):
         wl.lamp_forces(c, r, P, tolerance=0.05, criterion="area", cells_per_diameter=8, device="cpu")
-    with pytest.raises(ValueError, match="tolerance: .* leave out grid"):
+    with pytest.raises(ValueError, match=r"tolerance: .* leave out grid"):
         wl.lamp_forces(c, r, P, tolerance=0.05, grid=wl.LampGrid.enclosing(c, r), device="cpu")
     with pytest.raises(ValueError, match=r"tolerance: .* needs a grid spec"):
         wl.ShiningLamp(wl.LampGrid.enclosing(c, r), tolerance=0.05, device="cpu")

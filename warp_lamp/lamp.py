@@ -421,6 +421,11 @@ class ShiningLamp:
         return self.frame.origin
 
     @property
+    def follow_shift(self) -> wp.array:
+        """With ``follow``: the last update's shift of the frame origin in whole cells, one ``vec3i`` on the device."""
+        return self.frame.follow_shift
+
+    @property
     def walls(self) -> wp.array:
         """The walls' planes in world coordinates, one ``vec4`` (n, d) each, fluid where n . x > d."""
         return self.frame.walls

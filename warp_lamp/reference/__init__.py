@@ -13,6 +13,12 @@ from warp_lamp.reference.area import (
     visible_area_reference,
     visible_disk_areas,
 )
+from warp_lamp.reference.distributed import (
+    fixed_units_reference,
+    global_keys_reference,
+    merge_lists_reference,
+    scatter_reference,
+)
 from warp_lamp.reference.lamp import EPS32, LampReference, lamp_reference
 from warp_lamp.reference.porosity import (
     PAPER_TABLE_1,
@@ -31,11 +37,15 @@ __all__ = [
     "LampReference",
     "area_depth_slots",
     "area_estimate_reference",
+    "fixed_units_reference",
+    "global_keys_reference",
     "lamp_reference",
+    "merge_lists_reference",
     "midpoint_sphere_offsets",
     "midpoint_spheres",
     "octant_volume",
     "porosity_reference",
+    "scatter_reference",
     "sphere_box_volume",
     "visible_area_reference",
     "visible_disk_areas",

@@ -1,0 +1,367 @@
+"""The distributed lamp and porosity: bitwise equal to one process on every split, over MPI processes, NCCL's code
+path on thread ranks, and one rank; the distributed kernels against their references; the refusals."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import distributed_cases
+import numpy as np
+import pytest
+import warp as wp
+from fake_collectives import fake_nccl_collectives, run_ranks
+from helpers import polydisperse_scene
+
+from warp_lamp import LampGrid, ShiningLamp
+from warp_lamp.distributed import (
+    WETTED_REFUSAL,
+    DistributedLamp,
+    LocalCollective,
+    as_collective,
+    porosity_fixed_units,
+)
+from warp_lamp.kernels import distributed as dist_kernels
+from warp_lamp.reference.area import ordered_key
+from warp_lamp.reference.distributed import (
+    EMPTY_KEY,
+    fixed_units_reference,
+    global_keys_reference,
+    merge_lists_reference,
+    scatter_reference,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _failures(results):
+    return [r for r in results if not r["ok"]]
+
+
+def _mpiexec():
+    """The mpiexec beside this Python (the ``mpich`` wheel's), else one on PATH; None where there is none, or where
+    mpi4py cannot load an MPI library (asked in a child process, so that this one stays no MPI process)."""
+    local = Path(sys.executable).parent / "mpiexec"
+    found = str(local) if local.exists() else shutil.which("mpiexec")
+    if found is None:
+        return None
+    probe = subprocess.run([sys.executable, "-c", "from mpi4py import MPI"], capture_output=True, timeout=60)
+    return found if probe.returncode == 0 else None
+
+
+def test_one_rank_equals_shining_lamp(device):
+    """One rank (no library) reproduces ShiningLamp bitwise on every mode, and porosity on every method."""
+    results = distributed_cases.all_cases(LocalCollective(device), quick=True)
+    assert len(results) > 50
+    assert not _failures(results)
+
+
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_nccl_path_on_thread_ranks(ranks):
+    """The NCCL code path (raw pointers on Warp's stream, dtype and op codes, the gathered OR) on 2 and 3 thread
+    ranks, the 3-rank run reducing keys as int64 through the top-bit flip as torch does: every mode, split and
+    porosity method bitwise equal to one process."""
+    colls = fake_nccl_collectives(ranks, int64_only=ranks == 3)
+    results = run_ranks(colls, distributed_cases.all_cases)
+    flat = [r for part in results for r in part]
+    assert not _failures(flat)
+    names = " ".join(r["case"] for r in flat)
+    for split in distributed_cases.SPLITS:
+        assert f"/ {split}" in names
+    assert colls[0].comm.world.calls > 100
+    assert colls[0].comm.streams == {0}  # the CPU's stand-in for Warp's stream
+
+
+def test_mpi_processes(tmp_path):
+    """Two MPI processes (mpiexec from the mpich wheel, over mpi4py) on the CPU: forces bitwise equal to one process
+    for criteria 0, 1, a lamp subset and the area criterion on random, interleaved, spatial and lopsided splits,
+    the agreed enclosing grid equal to LampGrid.enclosing, and porosity equal for each method."""
+    mpiexec = _mpiexec()
+    if mpiexec is None:
+        pytest.skip("needs mpiexec and mpi4py with an MPI library: pip install '.[distributed]' (mpi4py, mpich)")
+    # Compile every kernel once here, so that the two ranks load them from the cache instead of both compiling.
+    distributed_cases.lamp_cases(LocalCollective("cpu"), quick=True)
+    out = tmp_path / "ranks.json"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    cmd = [mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "distributed_ranks.py"), "--json", str(out)]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=180)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    summary = json.loads(out.read_text())
+    assert summary["ranks"] == 2 and summary["ok"] and summary["failed"] == 0
+    cases = [r["case"] for r in summary["per_rank"][0]["results"]]
+    for needle in ("criterion 0", "criterion 1", "lamps -x +y +z", "area", "follow", "enclosing grid", "porosity"):
+        assert any(needle in c for c in cases), needle
+    for method in ("voxel", "midpoint", "centroid", "polyhedron", "exact"):
+        assert any(f"porosity {method}" in c for c in cases)
+
+
+def test_capture_replays_the_update(cuda_device):
+    """A distributed update recorded in a CUDA graph (one rank, a capturable collective) replays bitwise as eager,
+    at new positions too."""
+    rng = np.random.default_rng(4)
+    c, r = polydisperse_scene(rng, n=400)
+    grid = LampGrid.enclosing(c, r, cells_per_diameter=4)
+    lamp = DistributedLamp(grid, LocalCollective(cuda_device))
+    lamp.set_ids(rng.permutation(len(r)))
+    pos = wp.array(c.astype(np.float32), dtype=wp.vec3, device=cuda_device)
+    moved = wp.array((c + rng.normal(scale=0.05, size=c.shape)).astype(np.float32), dtype=wp.vec3, device=cuda_device)
+    rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=cuda_device)
+    lamp.update(moved, rad)
+    eager_moved = lamp.counts_numpy()
+    lamp.update(pos, rad)
+    eager = lamp.counts_numpy()
+    with wp.ScopedCapture(device=cuda_device) as capture:
+        lamp.update(moved, rad)
+    wp.capture_launch(capture.graph)
+    assert np.array_equal(lamp.counts_numpy(), eager_moved)
+    lamp.update(pos, rad)
+    assert np.array_equal(lamp.counts_numpy(), eager)
+
+
+def test_keys_to_global_and_flip(device):
+    """dist_keys_to_global against its reference, with and without the flip, on random keys and EMPTY; flipped keys
+    read as int64 sort as the unsigned keys do (the reason for the flip)."""
+    rng = np.random.default_rng(1)
+    n = 50
+    gids = rng.choice(1 << 31 - 1, size=n, replace=False).astype(np.int32)
+    gids[0] = (1 << 31) - 2
+    depth = rng.normal(scale=10.0, size=400).astype(np.float32)
+    depth[:4] = (0.0, -0.0, np.float32(3.4e38), -np.float32(3.4e38))
+    keys = ordered_key(depth, rng.integers(0, n, 400))
+    keys[::7] = EMPTY_KEY
+    k = wp.array(keys, dtype=wp.uint64, device=device)
+    g = wp.array(gids, dtype=wp.int32, device=device)
+    out = wp.empty(len(keys), dtype=wp.uint64, device=device)
+    for flip in (0, 1):
+        wp.launch(dist_kernels.dist_keys_to_global, dim=len(keys), inputs=[k, g, flip], outputs=[out], device=device)
+        got = out.numpy()
+        assert np.array_equal(got, global_keys_reference(keys, gids, flip=bool(flip)))
+    unflipped = global_keys_reference(keys, gids)
+    assert np.array_equal(np.argsort(got.view(np.int64), kind="stable"), np.argsort(unflipped, kind="stable"))
+
+
+def test_scatter_reference(device):
+    """dist_scatter against its reference on keys where some cells are the rank's, some another rank's, some EMPTY,
+    with a caller permutation."""
+    rng = np.random.default_rng(2)
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
+    cells = grid.n_cells
+    n = 30
+    gids = np.sort(rng.choice(1000, size=n, replace=False)).astype(np.int32)
+    caller = rng.permutation(n).astype(np.int32)
+    keys = ordered_key(rng.normal(size=2 * cells), rng.integers(0, n, 2 * cells))
+    keys[rng.random(2 * cells) < 0.2] = EMPTY_KEY
+    mine = global_keys_reference(keys, gids)
+    reduced = mine.copy()
+    other = rng.random(2 * cells) < 0.4
+    reduced[other] = ordered_key(rng.normal(size=other.sum()), rng.integers(1000, 2000, other.sum()))
+    reduced[rng.random(2 * cells) < 0.1] = EMPTY_KEY
+    axis = np.concatenate([np.full(int(grid.counts[a, 0] * grid.counts[a, 1]), a) for a in range(3)])
+    want = scatter_reference(reduced, keys, gids, caller, axis, n)
+    assert np.abs(want).sum() > 10
+    origin, rotation = grid.pose_arrays(device, in_frame=True)
+    counts = wp.zeros(3 * n, dtype=wp.int64, device=device)
+    wp.launch(
+        dist_kernels.dist_scatter,
+        dim=cells,
+        inputs=[
+            grid.params(origin, rotation),
+            wp.array(keys, dtype=wp.uint64, device=device),
+            wp.array(gids, dtype=wp.int32, device=device),
+            wp.array(caller, dtype=wp.int32, device=device),
+            0,
+            wp.array(reduced, dtype=wp.uint64, device=device),
+        ],
+        outputs=[counts],
+        device=device,
+    )
+    assert np.array_equal(counts.numpy().reshape(n, 3), want)
+
+
+def test_merge_rounds_reference(device):
+    """D rounds of dist_merge_offer, a MIN over ranks and dist_merge_take give, per list, the D smallest distinct
+    keys of the union of the ranks' lists (shared keys, EMPTY tails, lists all EMPTY), as the reference."""
+    rng = np.random.default_rng(3)
+    ranks, lists, d = 3, 200, 3
+    pool = np.sort(rng.choice(1 << 40, size=(lists, 8), replace=False).astype(np.uint64), axis=1)
+    per_rank = []
+    for _ in range(ranks):
+        take = np.sort(np.stack([rng.choice(8, size=d, replace=False) for _ in range(lists)]), axis=1)
+        keys = np.take_along_axis(pool, take, axis=1)
+        keep = rng.integers(0, d + 1, lists)
+        keys[np.arange(d)[None, :] >= keep[:, None]] = EMPTY_KEY
+        per_rank.append(keys)
+    per_rank[0][:5] = EMPTY_KEY
+    per_rank[1][:5] = EMPTY_KEY
+    per_rank[2][:5] = EMPTY_KEY
+    want = merge_lists_reference(per_rank)
+    local = [wp.array(k.reshape(-1), dtype=wp.uint64, device=device) for k in per_rank]
+    merged = wp.empty(lists * d, dtype=wp.uint64, device=device)
+    offer = wp.empty(lists, dtype=wp.uint64, device=device)
+    for k in range(d):
+        offers = []
+        for r in range(ranks):
+            wp.launch(
+                dist_kernels.dist_merge_offer, dim=lists, inputs=[local[r], merged, d, k, 0], outputs=[offer],
+                device=device,
+            )  # fmt: skip
+            offers.append(offer.numpy().copy())  # a CPU array's numpy() is a view
+        offer.assign(np.minimum.reduce(offers))
+        wp.launch(dist_kernels.dist_merge_take, dim=lists, inputs=[offer, d, k, 0], outputs=[merged], device=device)
+    assert np.array_equal(merged.numpy().reshape(lists, d), want)
+
+
+@pytest.mark.parametrize("method", ["centroid", "polyhedron", "exact"])
+def test_fixed_point_units_reference(device, method):
+    """porosity_fixed against the float64 reference: each sphere-cell volume rounds to the same unit of 2^-40 of a
+    cell, or one unit off where the two volumes straddle a rounding boundary; spheres half outside the box and
+    straddling cell faces included."""
+    rng = np.random.default_rng(5)
+    c, r = polydisperse_scene(rng, n=60, extent=4.0, rmin=0.3, rmax=0.9)
+    c[0] = (-0.5, 2.0, 2.0)
+    c[1] = (1.0, 1.0, 1.0)
+    h, shape = np.array([1.0, 0.8, 1.25]), (4, 5, 3)
+    units, overflow = porosity_fixed_units(c, r, h, shape, method, device)
+    want = fixed_units_reference(c, r, h, shape, method)
+    assert int(overflow.numpy()[0]) == 0
+    assert want.sum() > 1 << 40
+    assert np.abs(units.numpy() - want).max() <= len(r)
+    assert np.mean(units.numpy() == want) > 0.5
+
+
+def test_fixed_point_overflow_is_refused():
+    """A cell holding over 2^23 cell volumes of sphere overflows the int64 units: counted, and refused by name."""
+    from warp_lamp.distributed import porosity_distributed
+
+    centers = np.array([[0.5, 0.5, 0.5]])
+    with pytest.raises(ValueError, match="radii: 1 sphere-cell volumes overflowed"):
+        porosity_distributed(None, centers, [200.0], (0, 0, 0), (1, 1, 1), (1, 1, 1), method="centroid")
+
+
+def test_or_gathered(device):
+    """dist_or_gathered is the bitwise OR of every rank's words."""
+    rng = np.random.default_rng(6)
+    words = rng.integers(0, 1 << 32, size=(4, 100), dtype=np.uint64).astype(np.uint32)
+    bits = wp.empty(100, dtype=wp.uint32, device=device)
+    gathered = wp.array(words.reshape(-1), dtype=wp.uint32, device=device)
+    wp.launch(dist_kernels.dist_or_gathered, dim=100, inputs=[gathered, 4], outputs=[bits], device=device)
+    assert np.array_equal(bits.numpy(), np.bitwise_or.reduce(words, axis=0))
+
+
+def test_reduction_bytes():
+    """Criteria 0 and 1 send the whole key array (16 bytes per cell); the area criterion its D-slot corner lists and
+    16 bytes per particle of the body; follow adds the box's 24 bytes."""
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
+    lamp = DistributedLamp(grid, None, follow=True)
+    lamp.set_ids(np.arange(10))
+    assert lamp.reduction_bytes == 16 * grid.n_cells + 24
+    area = DistributedLamp(grid, None, criterion="area", depth_slots=2)
+    area.set_ids(np.array([3, 90]))
+    assert area.reduction_bytes == 2 * 2 * 8 * grid.n_samples + 16 * 91
+
+
+def test_bad_ids_are_refused():
+    """set_ids names the first bad index: negative, too large, repeated; update before set_ids and a particle count
+    other than set_ids' are refused by name; the wetted surface is refused with its reason."""
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
+    lamp = DistributedLamp(grid, None)
+    pos = wp.zeros(3, dtype=wp.vec3, device="cpu")
+    rad = wp.full(3, 0.3, dtype=wp.float32, device="cpu")
+    with pytest.raises(RuntimeError, match="set_ids"):
+        lamp.update(pos, rad)
+    with pytest.raises(ValueError, match=r"global_ids: must be in .*index 1 is -4"):
+        lamp.set_ids([0, -4, 2])
+    with pytest.raises(ValueError, match="index 2 is 2147483647"):
+        lamp.set_ids([0, 5, 2**31 - 1])
+    with pytest.raises(ValueError, match="global_ids: index 3 repeats id 7"):
+        lamp.set_ids([7, 1, 2, 7])
+    with pytest.raises(ValueError, match="global_ids: index 3 repeats id 7"):
+        lamp.set_ids(wp.array([7, 1, 2, 7], dtype=wp.int32, device="cpu"))
+    with pytest.raises(ValueError, match="global_ids: expected a 1-D array of integers"):
+        lamp.set_ids([0.5, 1.0])
+    lamp.set_ids([4, 1])
+    with pytest.raises(ValueError, match="positions: 3 particles, but set_ids named 2"):
+        lamp.update(pos, rad)
+    with pytest.raises(ValueError, match=r"surfaces='all' .* is not distributed") as err:
+        DistributedLamp(grid, None, surfaces="all")
+    assert str(err.value) == WETTED_REFUSAL
+    with pytest.raises(TypeError, match="comm: expected an mpi4py communicator"):
+        as_collective(object())
+
+
+def test_ranks_refuse_together():
+    """Ranks that disagree on the grid all raise (none is left waiting in a collective), and one rank's bad ids
+    make every rank raise, the others naming the other rank."""
+    colls = fake_nccl_collectives(2)
+    grids = [LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5), LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.25)]
+
+    def build(coll):
+        try:
+            DistributedLamp(grids[coll.rank], coll)
+        except ValueError as e:
+            return str(e)
+        return None
+
+    assert all("grid: the ranks passed different grids" in m for m in run_ranks(colls, build))
+
+    def bad_ids(coll):
+        lamp = DistributedLamp(grids[0], coll)
+        try:
+            lamp.set_ids([1, 1] if coll.rank == 0 else [5])
+        except (ValueError, RuntimeError) as e:
+            return type(e).__name__ + ": " + str(e)
+        return None
+
+    got = run_ranks(colls, bad_ids)
+    assert got[0].startswith("ValueError: global_ids: index 1 repeats id 1")
+    assert got[1].startswith("RuntimeError: global_ids: 1 other rank(s) refused")
+
+    def shared_id(coll):
+        lamp = DistributedLamp(grids[0], coll)
+        try:
+            lamp.set_ids([0, 1])
+        except ValueError as e:
+            return str(e)
+        return None
+
+    assert all("some id is on two ranks" in m for m in run_ranks(colls, shared_id))
+
+
+def test_torch_gloo_one_rank():
+    """torch.distributed (Gloo, one rank) as the collective: its int64 path with the key flip, on every mode and
+    porosity method (where torch is installed)."""
+    torch_dist = pytest.importorskip("torch.distributed")
+    if not torch_dist.is_available():
+        pytest.skip("torch.distributed is not available in this torch build")
+    from warp_lamp.distributed import TorchCollective
+
+    owned = not torch_dist.is_initialized()
+    if owned:
+        torch_dist.init_process_group("gloo", init_method="tcp://127.0.0.1:29533", rank=0, world_size=1)
+    try:
+        results = distributed_cases.all_cases(TorchCollective(None, "cpu"), quick=True)
+        assert not _failures(results)
+    finally:
+        if owned:
+            torch_dist.destroy_process_group()
+
+
+def test_one_rank_on_the_whole_body_equals_shining_lamp_on_every_device(device):
+    """A rank holding every particle in shuffled rows gets ShiningLamp's counts in its rows, on every device."""
+    rng = np.random.default_rng(9)
+    c, r = polydisperse_scene(rng, n=300)
+    grid = LampGrid.enclosing(c, r, cells_per_diameter=4)
+    pos = wp.array(c.astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
+    ref = ShiningLamp(grid, device=device)
+    ref.update(pos, rad)
+    rows = rng.permutation(len(r))
+    lamp = DistributedLamp(grid, None, device=device)
+    lamp.set_ids(rows)
+    lamp.update(
+        wp.array(c[rows].astype(np.float32), dtype=wp.vec3, device=device),
+        wp.array(r[rows].astype(np.float32), dtype=wp.float32, device=device),
+    )
+    assert np.array_equal(lamp.counts_numpy(), ref.counts_numpy()[rows])

@@ -1,0 +1,1367 @@
+"""The lamp and porosity on particles split across processes and devices, through an existing collective library.
+
+Each rank (a process, usually one per GPU) holds some of the particles, each with a **global id**: an integer in
+[0, 2^31 - 1), unique across ranks. The caller starts the processes and passes its communicator; the library never
+starts processes. Three collective libraries are wrapped (imported lazily, ``pip install ".[distributed]"``):
+
+- **MPI** through mpi4py (:class:`MPICollective`): reduces host memory, so a CUDA lamp stages its keys through the
+  host (a synchronisation, not capturable in a CUDA graph). The CPU path reduces the lamp's own arrays in place.
+- **NCCL** through CuPy's ``cupy.cuda.nccl`` (:class:`NCCLCollective`): reduces device memory on Warp's stream, so
+  :meth:`DistributedLamp.update` can be recorded in a CUDA graph (``wp.ScopedCapture``).
+- **torch.distributed** (:class:`TorchCollective`): NCCL for CUDA tensors, Gloo for CPU tensors, on Warp's stream;
+  capture is off by default (``capturable=True`` asks for it; ``bench/gpu/parts/distributed.sh`` tests it).
+
+The lamp (criteria 0, 1 and ``"area"``) keeps, per cell and lamp, the minimum of packed (depth, id) keys. A minimum is
+associative and commutative, so each rank runs the lamp's own depth pass on its particles, writes global ids into
+its keys, and an all-reduce MIN combines them; each rank then scatters counts to its own particles. The counts, and
+so the forces, are **bitwise equal** to one device holding all particles in global-id order, for any split. Two
+details make that hold:
+
+- Ties go to the lowest id. A rank sorts its particles by global id before its depth pass (a permutation fixed at
+  :meth:`DistributedLamp.set_ids`, skipped when the caller's order is already ascending), so that its local index
+  order is the global order.
+- A rank's keys keep local indices (its last update's owners seed the next update, as ``ShiningLamp`` does; they are
+  always the rank's own particles, so seeding needs nothing from other ranks). After the reduction, a cell belongs
+  to this rank exactly when the reduced key equals the rank's own key with its global id: no map from global ids
+  back to local indices is needed (no array of N_global entries, no search).
+
+Not distributed: the wetted surface (``surfaces="all"``, see :data:`WETTED_REFUSAL`) and frame averaging (build one
+:class:`DistributedLamp` per frame grid, ``LampGrid.rotated``).
+
+Porosity (:func:`porosity_distributed`): the sum methods add int64 fixed-point units per cell (integer sums do not
+depend on the order or the split) and reduce them by SUM; the union methods mark a sub-cell bitmap per rank and
+reduce it by bitwise OR, which works for any split (a halo of particles would need a spatial split).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+# The coupling to the lamp's pipeline, all of it: public helpers (owner maps, diagnostics, the area units), and
+# three internals, its criterion check and its automatic split and order of the depth pass, so that both lamps
+# share out the work alike (the result depends on neither).
+from warp_lamp.estimators import (
+    AREA_EXACT_UNIT,
+    AREA_RESOLVERS,
+    LampDiagnostics,
+    _auto_order,
+    _auto_split,
+    lamp_owner_maps,
+)
+from warp_lamp.frames import lamp_force_factors, lamp_pressure
+from warp_lamp.grid import LampGrid
+from warp_lamp.kernels import area as area_kernels
+from warp_lamp.kernels import distributed as dist_kernels
+from warp_lamp.kernels import lamp as lamp_kernels
+from warp_lamp.kernels.footprint import RAY_CORNER
+from warp_lamp.lamp import _check_criterion
+from warp_lamp.porosity import (
+    POROSITY_METHODS,
+    count_bitmap,
+    midpoint_subdivisions,
+    porosity_bitmap_bytes,
+    porosity_mark_union,
+)
+from warp_lamp.validate import (
+    DEFAULT_MAX_BYTES,
+    check_box,
+    check_budget,
+    check_force_range,
+    check_integer,
+    check_particle_arrays,
+    check_particles,
+    check_positive,
+    check_shape,
+    check_subdivisions,
+    check_warp_array,
+    format_bytes,
+    lamp_mask,
+    lamp_rotation,
+)
+
+__all__ = [
+    "FIXED_POINT_BITS",
+    "WETTED_REFUSAL",
+    "Collective",
+    "DistributedDiagnostics",
+    "DistributedLamp",
+    "LocalCollective",
+    "MPICollective",
+    "NCCLCollective",
+    "TorchCollective",
+    "as_collective",
+    "enclosing_grid",
+    "porosity_distributed",
+    "porosity_fixed_units",
+]
+
+#: Why the wetted surface is not distributed, and the plan.
+WETTED_REFUSAL = (
+    "surfaces='all' (the wetted surface) is not distributed: its fluid region is a flood fill from outside over the "
+    "whole grid's probe-dilated voxels, and a crossing's load goes to the nearest sphere of any rank. Plan: (1) each "
+    "rank marks its spheres' dilated voxels and a bitwise-OR all-reduce gives every rank the global occupancy; (2) "
+    "each rank runs the connectivity solve on it redundantly (deterministic, so all agree); (3) each crossing's "
+    "nearest sphere is a MIN over packed (distance, global id) keys, all-reduced as the lamp's keys are; (4) each "
+    "rank scatters the loads of its own spheres. Use surfaces='first'"
+)
+
+#: Fractional bits of the fixed-point porosity sums: units of 2^-40 of a cell's volume.
+FIXED_POINT_BITS = 40
+
+#: Largest global id: ids go into the low 32 bits of a key as int32.
+_MAX_ID = (1 << 31) - 2
+_EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
+_TOP = np.uint64(0x8000000000000000)
+_N_DIAG = lamp_kernels.N_DIAG + 2
+
+_OPS = ("min", "max", "sum", "bor")
+_WP_DTYPES = {
+    np.dtype(np.uint64): wp.uint64,
+    np.dtype(np.int64): wp.int64,
+    np.dtype(np.uint32): wp.uint32,
+    np.dtype(np.int32): wp.int32,
+    np.dtype(np.float32): wp.float32,
+    np.dtype(np.float64): wp.float64,
+}
+
+
+# --- collectives ------------------------------------------------------------------------------------------------
+
+
+class Collective:
+    """What the distributed lamp needs of a collective library: in-place all-reduces and all-gathers of 1-D warp
+    arrays on the device, and small host reductions for setup (built on the device ones by default).
+
+    Attributes:
+        name: The library ("mpi", "nccl", "torch", "local").
+        rank: This process's rank.
+        size: Number of ranks.
+        device: The Warp device of this rank's arrays.
+        capturable: Whether the device collectives can be recorded in a CUDA graph on Warp's stream.
+        flip_keys: uint64 arrays are reduced as int64 (the library has no unsigned 64-bit reduction): callers xor
+            the top bit of each key before and after, which turns unsigned order into signed order.
+    """
+
+    name = "abstract"
+    capturable = False
+    flip_keys = False
+
+    def __init__(self, rank: int, size: int, device):
+        self.rank = int(rank)
+        self.size = int(size)
+        self.device = wp.get_device(device)
+
+    def allreduce(self, arr: wp.array, op: str) -> None:
+        """Reduce ``arr`` in place across ranks, on ``arr``'s device and Warp's stream.
+
+        Args:
+            arr: A contiguous 1-D warp array of uint64, int64, uint32, int32, float32 or float64.
+            op: "min", "max", "sum" or "bor" (bitwise OR, for integer arrays).
+        """
+        raise NotImplementedError
+
+    def allgather(self, send: wp.array, recv: wp.array) -> None:
+        """recv[r * len(send) : (r + 1) * len(send)] = rank r's ``send``, for every rank r."""
+        raise NotImplementedError
+
+    def _check(self, arr, op):
+        if op not in _OPS:
+            raise ValueError(f"op: expected one of {_OPS}, got {op!r}")
+        if not isinstance(arr, wp.array) or arr.ndim != 1 or not arr.is_contiguous:
+            raise ValueError("arr: expected a contiguous 1-D warp array")
+
+    def allreduce_host(self, x, op: str) -> np.ndarray:
+        """A reduced copy of the host array ``x`` (setup only: it synchronises). uint64 are reduced as unsigned."""
+        x = np.ascontiguousarray(x)
+        flat = x.reshape(-1)
+        flip = self.flip_keys and flat.dtype == np.uint64 and op in ("min", "max")
+        if flip:
+            flat = flat ^ _TOP
+        arr = wp.array(flat, dtype=_WP_DTYPES[flat.dtype], device=self.device)
+        self.allreduce(arr, op)
+        out = arr.numpy()
+        if flip:
+            out = out ^ _TOP
+        return out.reshape(x.shape)
+
+    def allgather_host(self, x) -> list[np.ndarray]:
+        """Every rank's 1-D host array ``x`` (lengths may differ), as a list by rank (setup only)."""
+        x = np.ascontiguousarray(x).reshape(-1)
+        lengths = self._gather_fixed(np.array([len(x)], dtype=np.int64))
+        longest = int(lengths.max())
+        padded = np.zeros(max(longest, 1), dtype=x.dtype)
+        padded[: len(x)] = x
+        table = self._gather_fixed(padded).reshape(self.size, -1)
+        return [table[r, : int(lengths[r])].copy() for r in range(self.size)]
+
+    def _gather_fixed(self, x: np.ndarray) -> np.ndarray:
+        send = wp.array(x, dtype=_WP_DTYPES[x.dtype], device=self.device)
+        recv = wp.empty(self.size * len(x), dtype=send.dtype, device=self.device)
+        self.allgather(send, recv)
+        return recv.numpy()
+
+    def _or_by_gather(self, arr: wp.array) -> None:
+        """Bitwise OR for libraries without one: gather every rank's words, OR them with a kernel. A scratch buffer
+        of ``size`` times the array is kept per length, made on first use (not inside a capture)."""
+        if arr.dtype not in (wp.uint32, wp.int32):
+            raise TypeError("arr: bitwise OR by gathering takes uint32 or int32 words")
+        scratch = getattr(self, "_or_scratch", {})
+        self._or_scratch = scratch
+        n = arr.shape[0]
+        if n not in scratch:
+            if arr.device.is_capturing:
+                raise RuntimeError(
+                    f"{self.name}: a bitwise OR of {n} words needs a gather buffer, made by one call before the capture"
+                )
+            scratch[n] = wp.empty(self.size * n, dtype=wp.uint32, device=arr.device)
+        words = arr if arr.dtype == wp.uint32 else arr.view(wp.uint32)
+        self.allgather(words, scratch[n])
+        wp.launch(
+            dist_kernels.dist_or_gathered, dim=n, inputs=[scratch[n], self.size], outputs=[words], device=arr.device
+        )
+
+
+class LocalCollective(Collective):
+    """One rank and no library: every reduction is the identity. ``DistributedLamp`` on it is one process holding all
+    particles; :func:`porosity_distributed` on it is the single-process result its distributed runs equal."""
+
+    name = "local"
+    capturable = True
+
+    def __init__(self, device=None):
+        super().__init__(0, 1, device)
+
+    def allreduce(self, arr: wp.array, op: str) -> None:
+        self._check(arr, op)
+
+    def allgather(self, send: wp.array, recv: wp.array) -> None:
+        wp.copy(recv, send, count=send.shape[0])
+
+
+_MPI_TYPES = {
+    wp.uint64: "UINT64_T",
+    wp.int64: "INT64_T",
+    wp.uint32: "UINT32_T",
+    wp.int32: "INT32_T",
+    wp.float32: "FLOAT",
+    wp.float64: "DOUBLE",
+}
+
+
+class MPICollective(Collective):
+    """MPI through mpi4py. Host memory: a CPU lamp's arrays are reduced in place; a CUDA lamp's are copied to the
+    host and back (a synchronisation, so not capturable; a CUDA-aware MPI would still need the stream synchronised,
+    since MPI calls are not stream-ordered)."""
+
+    name = "mpi"
+
+    def __init__(self, comm, device=None):
+        from mpi4py import MPI  # the ``distributed`` extra
+
+        self.MPI = MPI
+        self.comm = comm
+        super().__init__(comm.Get_rank(), comm.Get_size(), device)
+
+    def _buffer(self, host: np.ndarray, dtype):
+        return [host, getattr(self.MPI, _MPI_TYPES[dtype])]
+
+    def _op(self, op):
+        return {"min": self.MPI.MIN, "max": self.MPI.MAX, "sum": self.MPI.SUM, "bor": self.MPI.BOR}[op]
+
+    def _host_view(self, arr: wp.array):
+        if arr.device.is_cuda:
+            if arr.device.is_capturing:
+                raise RuntimeError(
+                    "mpi: MPI reduces host memory, which a CUDA graph cannot record; use NCCL (NCCLCollective) to "
+                    "capture a distributed update, or update eagerly"
+                )
+            return arr.numpy(), True
+        return arr.numpy(), False  # a view of the CPU array's memory
+
+    def allreduce(self, arr: wp.array, op: str) -> None:
+        self._check(arr, op)
+        host, staged = self._host_view(arr)
+        self.comm.Allreduce(self.MPI.IN_PLACE, self._buffer(host, arr.dtype), op=self._op(op))
+        if staged:
+            arr.assign(host)
+
+    def allgather(self, send: wp.array, recv: wp.array) -> None:
+        src, _ = self._host_view(send)
+        dst, staged = self._host_view(recv)
+        self.comm.Allgather(self._buffer(src, send.dtype), self._buffer(dst, recv.dtype))
+        if staged:
+            recv.assign(dst)
+
+    def allreduce_host(self, x, op: str) -> np.ndarray:
+        x = np.ascontiguousarray(x)
+        out = np.empty_like(x)
+        dtype = _WP_DTYPES[x.dtype]
+        self.comm.Allreduce(self._buffer(x, dtype), self._buffer(out, dtype), op=self._op(op))
+        return out
+
+    def allgather_host(self, x) -> list[np.ndarray]:
+        return [np.asarray(part) for part in self.comm.allgather(np.ascontiguousarray(x).reshape(-1))]
+
+
+def _stream_handle(device) -> int:
+    """The CUDA stream Warp launches on for ``device`` (0 on the CPU, where only a stand-in library runs)."""
+    return wp.get_stream(device).cuda_stream if device.is_cuda else 0
+
+
+class NCCLCollective(Collective):
+    """NCCL through CuPy (``cupy.cuda.nccl.NcclCommunicator``): device buffers reduced by raw pointer on Warp's
+    stream, so a CUDA graph records them. NCCL has uint64 MIN; it has no bitwise OR, which is done by an
+    all-gather and a kernel (``size`` times the bytes).
+
+    Args:
+        comm: An ``NcclCommunicator`` (one per process and device).
+        device: The rank's Warp device; by default ``cuda:<comm.device_id()>``.
+        nccl: The module with the NCCL constants (``cupy.cuda.nccl`` by default; tests pass a stand-in).
+    """
+
+    name = "nccl"
+    capturable = True
+
+    def __init__(self, comm, device=None, *, nccl=None):
+        if nccl is None:
+            from cupy.cuda import nccl  # the GPU machines' CuPy; imported only here
+        self.nccl = nccl
+        self.comm = comm
+        if device is None:
+            device = f"cuda:{comm.device_id()}"
+        super().__init__(comm.rank_id(), comm.size(), device)
+        self._types = {
+            wp.uint64: nccl.NCCL_UINT64,
+            wp.int64: nccl.NCCL_INT64,
+            wp.uint32: nccl.NCCL_UINT32,
+            wp.int32: nccl.NCCL_INT32,
+            wp.float32: nccl.NCCL_FLOAT32,
+            wp.float64: nccl.NCCL_FLOAT64,
+        }
+        self._ops = {"min": nccl.NCCL_MIN, "max": nccl.NCCL_MAX, "sum": nccl.NCCL_SUM}
+
+    def allreduce(self, arr: wp.array, op: str) -> None:
+        self._check(arr, op)
+        if op == "bor":
+            self._or_by_gather(arr)
+            return
+        stream = _stream_handle(arr.device)
+        self.comm.allReduce(arr.ptr, arr.ptr, arr.shape[0], self._types[arr.dtype], self._ops[op], stream)
+
+    def allgather(self, send: wp.array, recv: wp.array) -> None:
+        stream = _stream_handle(send.device)
+        self.comm.allGather(send.ptr, recv.ptr, send.shape[0], self._types[send.dtype], stream)
+
+
+class TorchCollective(Collective):
+    """torch.distributed on its default (or a given) process group: NCCL for CUDA arrays, Gloo for CPU arrays. The
+    arrays are handed over without copies (``wp.to_torch``); on CUDA the collective is issued on Warp's stream.
+    torch reduces no uint64, so keys are reduced as int64 with their top bit flipped (:attr:`flip_keys`).
+
+    Args:
+        group: A process group, or None for the default one.
+        device: The rank's Warp device (Warp's default when None).
+        capturable: Allow :meth:`allreduce` inside ``wp.ScopedCapture``. Off by default: whether torch's NCCL
+            process group records into a graph begun on Warp's stream depends on the torch version;
+            ``bench/gpu/parts/distributed.sh`` checks it.
+    """
+
+    name = "torch"
+    flip_keys = True
+
+    def __init__(self, group=None, device=None, *, capturable: bool = False):
+        import torch.distributed as dist  # imported only here
+
+        self.dist = dist
+        self.group = group
+        self.capturable = bool(capturable)
+        super().__init__(dist.get_rank(group), dist.get_world_size(group), device)
+
+    def _tensor(self, arr: wp.array):
+        view = {wp.uint64: wp.int64, wp.uint32: wp.int32}.get(arr.dtype)
+        return wp.to_torch(arr if view is None else arr.view(view))
+
+    def _stream(self, device):
+        import torch
+
+        if not device.is_cuda:
+            import contextlib
+
+            return contextlib.nullcontext()
+        return torch.cuda.stream(wp.stream_to_torch(wp.get_stream(device)))
+
+    def _refuse_capture(self, device):
+        if device.is_capturing and not self.capturable:
+            raise RuntimeError(
+                "torch: collectives inside a CUDA graph capture are off (TorchCollective(capturable=True) turns them "
+                "on where the torch version records them); use NCCLCollective, or update eagerly"
+            )
+
+    def allreduce(self, arr: wp.array, op: str) -> None:
+        self._check(arr, op)
+        self._refuse_capture(arr.device)
+        if op == "bor":
+            self._or_by_gather(arr)
+            return
+        ops = {"min": self.dist.ReduceOp.MIN, "max": self.dist.ReduceOp.MAX, "sum": self.dist.ReduceOp.SUM}
+        with self._stream(arr.device):
+            self.dist.all_reduce(self._tensor(arr), op=ops[op], group=self.group)
+
+    def allgather(self, send: wp.array, recv: wp.array) -> None:
+        self._refuse_capture(send.device)
+        src = self._tensor(send)
+        dst = self._tensor(recv)
+        with self._stream(send.device):
+            self.dist.all_gather(list(dst.chunk(self.size)), src, group=self.group)
+
+
+def as_collective(comm, device=None) -> Collective:
+    """The :class:`Collective` for a caller's communicator.
+
+    Args:
+        comm: A :class:`Collective`; an mpi4py communicator; a CuPy ``NcclCommunicator``; ``"torch"`` (the default
+            process group) or a torch process group; or None (one process, :class:`LocalCollective`).
+        device: The rank's Warp device (for NCCL, by default the communicator's).
+    """
+    if isinstance(comm, Collective):
+        if device is not None and wp.get_device(device) != comm.device:
+            raise ValueError(f"device: {wp.get_device(device)}, but the collective's arrays live on {comm.device}")
+        return comm
+    if comm is None:
+        return LocalCollective(device)
+    kind = type(comm).__module__ + "." + type(comm).__name__
+    if kind.startswith("mpi4py."):
+        return MPICollective(comm, device)
+    if type(comm).__name__ == "NcclCommunicator":
+        return NCCLCollective(comm, device)
+    if isinstance(comm, str) and comm == "torch":
+        return TorchCollective(None, device)
+    if kind.startswith("torch."):
+        return TorchCollective(comm, device)
+    raise TypeError(
+        f"comm: expected an mpi4py communicator, a cupy NcclCommunicator, 'torch' or a torch process group, a "
+        f"Collective, or None; got {kind}"
+    )
+
+
+def _agree(coll: Collective, error: Exception | None, what: str) -> None:
+    """Raise on every rank if any rank failed a check, so that no rank enters a collective the others left."""
+    failed = coll.allreduce_host(np.array([0 if error is None else 1], dtype=np.int32), "sum")[0]
+    if error is not None:
+        raise error
+    if failed:
+        raise RuntimeError(f"{what}: {int(failed)} other rank(s) refused their input (their error says why)")
+
+
+def _fingerprint(*parts) -> np.ndarray:
+    """A 62-bit digest of the setup, as int64 (d, -d): MIN of both equal on every rank iff all agree."""
+    h = hashlib.sha256()
+    for p in parts:
+        h.update(np.ascontiguousarray(p).tobytes() if isinstance(p, np.ndarray) else repr(p).encode())
+    d = int.from_bytes(h.digest()[:8], "little") >> 2
+    return np.array([d, -d], dtype=np.int64)
+
+
+def _check_ids(global_ids, n: int | None = None) -> np.ndarray | wp.array:
+    if isinstance(global_ids, wp.array):
+        if global_ids.dtype != wp.int32 or global_ids.ndim != 1:
+            raise TypeError("global_ids: expected a 1-D warp array of int32")
+        if n is not None and global_ids.shape[0] != n:
+            raise ValueError(f"global_ids: has {global_ids.shape[0]} entries, the rank has {n} particles")
+        return global_ids
+    ids = np.asarray(global_ids)
+    if ids.ndim != 1 or not (ids.dtype.kind in "iu" or ids.size == 0):
+        raise ValueError(f"global_ids: expected a 1-D array of integers, got {ids.dtype} of shape {ids.shape}")
+    if n is not None and len(ids) != n:
+        raise ValueError(f"global_ids: has {len(ids)} entries, the rank has {n} particles")
+    bad = (ids < 0) | (ids > _MAX_ID)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"global_ids: must be in [0, {_MAX_ID}]; index {k} is {ids[k]}")
+    return ids.astype(np.int32)
+
+
+# --- the lamp -----------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class DistributedDiagnostics:
+    """What the last distributed update found (a collective call builds it).
+
+    Attributes:
+        lamp: The rank's :class:`~warp_lamp.LampDiagnostics`: its own particles' counts and surface flags; owners
+            as global ids and depths of the reduced keys (the whole grid's); lit cells of the whole grid; invalid
+            and outside particles summed over ranks.
+        ranks: Number of ranks.
+        n_global: Particles over all ranks.
+        reduction_bytes: Bytes each rank hands to the collective library per update (:attr:`DistributedLamp.
+            reduction_bytes`).
+    """
+
+    lamp: LampDiagnostics
+    ranks: int
+    n_global: int
+    reduction_bytes: int
+
+
+class DistributedLamp:
+    """The shining lamp on particles split across ranks: each rank passes its own particles and their global ids,
+    and gets its own particles' counts and forces, bitwise equal to one device holding all particles.
+
+    Collective calls (every rank must make them, in the same order): the constructor, :meth:`set_ids`,
+    :meth:`update`, :meth:`diagnostics`. :meth:`add_forces`, :meth:`counts_numpy` and :meth:`forces_numpy` are local.
+
+    Construction checks that every rank passed the same grid and options (a digest, all-reduced). :meth:`set_ids`
+    (whenever the rank's particles change: migration) sorts the ids on the device, checks them and makes room for
+    the particles; :meth:`update` then allocates nothing, reads nothing back and does not synchronise, so with a
+    capturable collective (:class:`NCCLCollective`) it can be recorded in a CUDA graph.
+
+    Per update each rank hands the library one all-reduce MIN of ``2 x 8`` bytes per cell (criteria 0 and 1: the
+    whole key array) or ``D`` rounds of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of
+    the whole body (``"area"``), plus 24 bytes with ``follow``: :attr:`reduction_bytes`.
+    """
+
+    def __init__(
+        self,
+        grid: LampGrid,
+        comm,
+        *,
+        criterion: int | str = 1,
+        lamps="all",
+        device=None,
+        depth_slots: int = 3,
+        resolver: str = "subpoints",
+        subpoints: int = 8,
+        follow: bool = False,
+        split: int | str = "auto",
+        order: bool | str = "auto",
+        surfaces: str = "first",
+        max_bytes: int = DEFAULT_MAX_BYTES,
+    ):
+        """Allocate the rank's per-cell arrays and check that all ranks agree on the setup (collective).
+
+        Args:
+            grid: The lamp grids, the same on every rank (:func:`enclosing_grid` agrees one).
+            comm: The communicator (:func:`as_collective`: mpi4py, CuPy NCCL, torch.distributed, or None for one
+                process).
+            criterion: 0, 1 or ``"area"``, as :class:`~warp_lamp.ShiningLamp`.
+            lamps: "all", or names from :data:`~warp_lamp.LAMPS`.
+            device: The rank's Warp device (by default the collective's, else Warp's default).
+            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 4.
+            resolver: Area criterion: ``"subpoints"`` or ``"exact"``.
+            subpoints: Area criterion, sub-point resolver: points per cell edge, 1 to 16.
+            follow: Move the grid with the body by whole cells; the body's box is reduced across ranks (MIN/MAX
+                of 6 float32), so every rank moves the grid alike.
+            split: The depth pass's work split, as :class:`~warp_lamp.ShiningLamp` (the result does not depend on
+                it).
+            order: Sort the depth pass's work by cell, as :class:`~warp_lamp.ShiningLamp`.
+            surfaces: ``"first"`` only: ``"all"`` is refused (:data:`WETTED_REFUSAL`).
+            max_bytes: Budget for the rank's per-cell arrays [bytes].
+        """
+        if not isinstance(grid, LampGrid):
+            raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
+        if surfaces == "all":
+            raise ValueError(WETTED_REFUSAL)
+        if surfaces != "first":
+            raise ValueError(f"surfaces: expected 'first' ('all' is not distributed), got {surfaces!r}")
+        if order not in ("auto", True, False):
+            raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
+        if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
+            raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
+        if resolver not in AREA_RESOLVERS:
+            raise ValueError(f"resolver: expected one of {AREA_RESOLVERS}, got {resolver!r}")
+        if follow not in (True, False):
+            raise ValueError(f"follow: expected True or False, got {follow!r}")
+        self.comm = as_collective(comm, device)
+        self.device = d = self.comm.device
+        self.grid = grid
+        self.criterion = _check_criterion(criterion)
+        self.lamp_mask = lamp_mask(lamps)
+        area = self.criterion == "area"
+        self.depth_slots = check_integer("depth_slots", depth_slots, minimum=1) if area else 1
+        if self.depth_slots > lamp_kernels.MAX_SLOTS:
+            raise ValueError(f"depth_slots: expected an integer in [1, {lamp_kernels.MAX_SLOTS}], got {depth_slots}")
+        self.subpoints = check_integer("subpoints", subpoints, minimum=1)
+        if self.subpoints > 16:
+            raise ValueError(f"subpoints: expected an integer in [1, 16], got {subpoints}")
+        self.resolver = resolver
+        self.unit = 1
+        if area:
+            self.unit = AREA_EXACT_UNIT if resolver == "exact" else self.subpoints**2
+        self._ray = int(RAY_CORNER) if area else self.criterion
+        if follow and not grid.is_box:
+            raise ValueError("follow: needs the box form of the grid (LampGrid(lower, upper, cell) or enclosing)")
+        self.follow = bool(follow)
+        samples = grid.n_samples if area else grid.n_cells
+        n_keys = 2 * self.depth_slots * samples
+        # The rank's keys, their global-id copy (sent, then reduced in place), and for the area criterion the
+        # merged lists and one round's buffer.
+        self.nbytes = 2 * n_keys * 8 + (n_keys * 8 + 2 * samples * 8 if area else 0)
+        check_budget(
+            self.nbytes,
+            max_bytes,
+            f"grid: {n_keys:,} keys per rank and their reduction buffers need {format_bytes(self.nbytes)}",
+            "use larger cells",
+        )
+        digest = _fingerprint(
+            grid.corner, grid.cell, grid.counts, grid.origin, grid.rotation, repr(self.criterion), self.lamp_mask,
+            self.depth_slots, self.resolver, self.subpoints, self.follow,
+        )  # fmt: skip
+        agreed = self.comm.allreduce_host(digest, "min")
+        if not np.array_equal(agreed, digest):
+            raise ValueError(
+                "grid: the ranks passed different grids or options (criterion, lamps, depth_slots, resolver, "
+                "subpoints, follow); agree them first (enclosing_grid reduces the bounds)"
+            )
+        self._split = split
+        self._order = order
+        self.split = 0
+        self.origin, self.rotation = grid.pose_arrays(d)
+        frame_pose = grid.pose_arrays(d, in_frame=True)
+        self._cells = {False: grid.params(self.origin, self.rotation), True: grid.params(*frame_pose)}
+        self._rays = {
+            False: grid.params(self.origin, self.rotation, corners=area),
+            True: grid.params(*frame_pose, corners=area),
+        }
+        self.keys = wp.full(n_keys, value=_EMPTY, dtype=wp.uint64, device=d)
+        #: The keys with global ids: what this rank sends; after an update, the reduced keys of all ranks
+        #: (criteria 0 and 1; top bit flipped where the library reduces int64).
+        self.reduced = wp.empty(n_keys, dtype=wp.uint64, device=d)
+        if area:
+            #: Area criterion: the merged D-slot lists (global ids), and one merge round's keys.
+            self.merged = wp.empty(n_keys, dtype=wp.uint64, device=d)
+            self._round = wp.empty(2 * samples, dtype=wp.uint64, device=d)
+        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        self._flip = 1 if self.comm.flip_keys else 0
+        if self.follow:
+            self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=d)
+            self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=d)
+            base = grid.world_origin
+            self._follow_base = (
+                wp.vec3(*base.astype(np.float32)),
+                wp.vec3d(*base),
+                wp.vec3d(*grid.box_cell),
+                wp.vec3i(*grid.box_counts),
+            )
+        self._no_int = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
+        self.n = 0
+        self.n_global = 0
+        self._ids_set = False
+        self._inputs = None
+
+    # --- particles ---------------------------------------------------------------------------------------------
+
+    def set_ids(self, global_ids) -> None:
+        """Name the rank's particles (collective): row i of the positions that :meth:`update` gets is the particle
+        with global id ``global_ids[i]``. Call it again whenever the rank's particles change (migration).
+
+        Sorts the ids on the device (a radix sort), checks them (a synchronisation), and makes room for the
+        particles, so that :meth:`update` allocates nothing.
+
+        Args:
+            global_ids: This rank's global ids, shape (N,): integers in [0, 2^31 - 2], unique over all ranks (a
+                duplicate within a rank is refused; across ranks only a total over the largest id is caught);
+                numpy, or a warp int32 array on the lamp's device.
+
+        Raises:
+            ValueError: a bad id (naming the first bad index), on every rank when any rank has one.
+        """
+        d = self.device
+        error = None
+        try:
+            ids = _check_ids(global_ids)
+            if isinstance(ids, wp.array) and ids.device != d:
+                raise ValueError(f"global_ids: on device {ids.device}, the lamp is on {d}")
+        except (TypeError, ValueError) as e:
+            error = e
+        _agree(self.comm, error, "global_ids")
+        n = ids.shape[0]
+        if not isinstance(ids, wp.array):
+            ids = wp.array(ids, dtype=wp.int32, device=d)
+        sort_keys = wp.empty(2 * max(n, 1), dtype=wp.int32, device=d)
+        sort_values = wp.empty(2 * max(n, 1), dtype=wp.int32, device=d)
+        stats = wp.array([0, 0, 0, -1], dtype=wp.int32, device=d)
+        if n:
+            wp.launch(dist_kernels.dist_iota, dim=n, inputs=[ids, n], outputs=[sort_keys, sort_values], device=d)
+            wp.utils.radix_sort_pairs(sort_keys, sort_values, n)
+            wp.launch(
+                dist_kernels.dist_check_ids,
+                dim=n,
+                inputs=[sort_keys, sort_values],
+                outputs=[stats],
+                device=d,
+            )
+        negative, repeated, moved, largest = (int(x) for x in stats.numpy())
+        error = None
+        if negative or repeated or largest > _MAX_ID:
+            host = ids.numpy()
+            if negative or largest > _MAX_ID:
+                k = int(np.flatnonzero((host < 0) | (host > _MAX_ID))[0])
+                error = ValueError(f"global_ids: must be in [0, {_MAX_ID}]; index {k} is {host[k]}")
+            else:
+                _, first = np.unique(host, return_index=True)
+                k = int(np.setdiff1d(np.arange(n), first)[0])
+                error = ValueError(f"global_ids: index {k} repeats id {host[k]} of an earlier particle")
+        _agree(self.comm, error, "global_ids")
+        total = int(self.comm.allreduce_host(np.array([n], dtype=np.int64), "sum")[0])
+        top = int(self.comm.allreduce_host(np.array([largest], dtype=np.int64), "max")[0])
+        n_global = top + 1
+        if total > n_global:
+            raise ValueError(
+                f"global_ids: the ranks hold {total} particles but the largest id is {top}: some id is on two ranks"
+            )
+        self.n = n
+        self.n_global = n_global
+        self.n_total = int(total)
+        #: Global id of each particle in id order (the depth pass's local index order).
+        self.gids = wp.clone(sort_keys[:n]) if n else wp.empty(0, dtype=wp.int32, device=d)
+        #: The caller's row of each particle in id order; empty where the caller's order is already ascending.
+        self.caller = wp.clone(sort_values[:n]) if moved else self._no_int
+        self.counts = wp.zeros(3 * n, dtype=wp.int64, device=d)
+        if moved:
+            self._sorted = (
+                wp.empty(n, dtype=wp.vec3, device=d),
+                wp.empty(n, dtype=wp.float32, device=d),
+                wp.empty(n, dtype=wp.int32, device=d),
+            )
+        self.split = _auto_split(n, d) if self._split == "auto" else int(self._split)
+        if self.depth_slots > 1 or self.criterion == "area":
+            self.split = max(self.split, 1)
+        sort = _auto_order(n, d) if self._order == "auto" else self._order
+        self.order = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_order = self.order
+        if sort and self.split > 0 and n:
+            self.order = wp.empty(3 * n, dtype=wp.int32, device=d)
+            self._order_keys = wp.empty(2 * n, dtype=wp.int32, device=d)
+            self._order_ids = wp.empty(2 * n, dtype=wp.int32, device=d)
+        self._ordered = False
+        if self.criterion == "area":
+            self._table_positions = wp.zeros(n_global, dtype=wp.vec3, device=d)
+            self._table_radii = wp.zeros(n_global, dtype=wp.float32, device=d)
+            self._table_counts = wp.zeros(3 * n_global, dtype=wp.int64, device=d)
+            table = lamp_kernels.LampParticles()
+            table.positions = self._table_positions
+            table.radii = self._table_radii
+            table.active = self._no_int
+            table.n = n_global
+            self._table = table
+            # int32 views of the table, for the integer SUM of its bit patterns (they alias the table's memory).
+            self._table_words = (
+                wp.array(ptr=self._table_positions.ptr, dtype=wp.int32, shape=(3 * n_global,), device=d),
+                self._table_radii.view(wp.int32),
+            )
+        self._ids_set = True
+        self._inputs = None
+
+    @property
+    def reduction_bytes(self) -> int:
+        """Bytes this rank hands to the collective library per update (the payload of its all-reduces; a ring
+        all-reduce sends about 2 (P - 1) / P times that per rank)."""
+        n_keys = self.keys.shape[0]
+        total = 8 * n_keys if self.criterion != "area" else 8 * n_keys + 16 * self.n_global
+        return total + (24 if self.follow else 0)
+
+    def forget(self) -> None:
+        """Drop the rank's last owners, so that the next update runs cold (for benchmarks; results are equal)."""
+        wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
+
+    # --- the update --------------------------------------------------------------------------------------------
+
+    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None, *, in_frame=False) -> None:
+        """Recompute the owners of every cell over all ranks, and this rank's particles' counts (collective).
+
+        Args:
+            positions: The rank's particle centres [m], warp array of vec3 (float32), shape (N,), rows as the ids
+                given to :meth:`set_ids`, world coordinates (or frame coordinates with ``in_frame``).
+            radii: Particle radii [m], warp array of float32, shape (N,).
+            active: Optional warp array of int32, shape (N,): 0 makes a particle invisible.
+            in_frame: ``positions`` are already in frame coordinates (``grid.to_frame``).
+        """
+        if not self._ids_set:
+            raise RuntimeError("update: no particles named yet; call DistributedLamp.set_ids(global_ids) first")
+        n = check_particle_arrays(positions, radii, active, self.device, "the lamp")
+        if n != self.n:
+            raise ValueError(
+                f"positions: {n} particles, but set_ids named {self.n}; call set_ids with the new particles' ids"
+            )
+        d = self.device
+        particles = lamp_kernels.LampParticles()
+        if self.caller.shape[0] and n:
+            pos, rad, act = self._sorted
+            wp.launch(
+                dist_kernels.dist_gather_particles,
+                dim=n,
+                inputs=[positions, radii, self._no_int if active is None else active, self.caller],
+                outputs=[pos, rad, act],
+                device=d,
+            )
+            particles.positions, particles.radii = pos, rad
+            particles.active = self._no_int if active is None else act
+        else:
+            particles.positions, particles.radii = positions, radii
+            particles.active = self._no_int if active is None else active
+        particles.n = n
+        self._inputs = (bool(in_frame), particles)
+        if self.follow and not in_frame:
+            self._launch_follow(particles)
+        if self.order.shape[0] and not self._ordered and not d.is_capturing:
+            self.reorder()
+        self._launch_seed()
+        self._launch_depth()
+        if self.criterion == "area":
+            self._reduce_area(particles)
+        else:
+            self._reduce_scatter()
+
+    def _launch_follow(self, particles) -> None:
+        origin32, origin, cell, box = self._follow_base
+        d = self.device
+        wp.launch(
+            lamp_kernels.lamp_follow_bounds,
+            dim=self.n,
+            inputs=[particles, origin32, self.rotation],
+            outputs=[self._bounds],
+            device=d,
+        )
+        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=d)
+        self.comm.allreduce(self._bounds, "min")
+        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=d)
+        wp.launch(
+            lamp_kernels.lamp_follow_shift,
+            dim=1,
+            inputs=[origin, cell, box, self.rotation],
+            outputs=[self._bounds, self.follow_shift, self.origin],
+            device=d,
+        )
+
+    def reorder(self) -> None:
+        """Sort the depth pass's work by the cell under each particle, at the last update's positions (a device
+        radix sort; not inside a capture), as ``ShiningLamp.reorder``."""
+        if not self.order.shape[0] or self._inputs is None:
+            return
+        in_frame, particles = self._inputs
+        n = self.n
+        for a in range(3):
+            wp.launch(
+                lamp_kernels.lamp_order_keys,
+                dim=n,
+                inputs=[self._rays[in_frame], particles, a],
+                outputs=[self._order_keys, self._order_ids],
+                device=self.device,
+            )
+            wp.utils.radix_sort_pairs(self._order_keys, self._order_ids, n)
+            wp.copy(self.order, self._order_ids, dest_offset=a * n, src_offset=0, count=n)
+        self._ordered = True
+
+    def _launch_seed(self) -> None:
+        """Clear the counts, and re-evaluate the rank's own last owners at the current positions."""
+        in_frame, particles = self._inputs
+        rays = self._rays[in_frame]
+        kernel, inputs = lamp_kernels.lamp_seed, [rays, particles, self._ray]
+        if self.depth_slots > 1:
+            kernel, inputs = lamp_kernels.lamp_seed_slots, [*inputs, self.depth_slots]
+        wp.launch(
+            kernel,
+            dim=max(rays.n_cells, self.n, _N_DIAG),
+            inputs=inputs,
+            outputs=[self.keys, self.counts, self.diag],
+            device=self.device,
+        )
+
+    def _launch_depth(self) -> None:
+        """The rank's particles offer their depths (local indices, in global-id order)."""
+        in_frame, particles = self._inputs
+        if self.n == 0:
+            return
+        if self.depth_slots > 1:
+            kernel = lamp_kernels.lamp_depth_slots
+        else:
+            kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
+        wp.launch(
+            kernel,
+            dim=self.n * (3 * self.split if self.split else 1),
+            inputs=[
+                self._rays[in_frame],
+                particles,
+                self._ray,
+                self.lamp_mask,
+                self.split,
+                self.depth_slots,
+                self.order if self._ordered else self._no_order,
+            ],
+            outputs=[self.keys, self.diag],
+            device=self.device,
+            block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
+        )
+
+    def launch_to_global(self) -> None:
+        """Update step: the rank's keys with global ids, into :attr:`reduced` (named for benchmarks)."""
+        wp.launch(
+            dist_kernels.dist_keys_to_global,
+            dim=self.keys.shape[0],
+            inputs=[self.keys, self.gids if self.n else self._no_int, self._flip],
+            outputs=[self.reduced],
+            device=self.device,
+        )
+
+    def launch_reduce(self) -> None:
+        """Update step: the all-reduce MIN of :attr:`reduced` (named for benchmarks, to time it alone)."""
+        self.comm.allreduce(self.reduced, "min")
+
+    def launch_scatter(self) -> None:
+        """Update step: +1 / -1 to the rank's own particles where the reduced key is theirs."""
+        in_frame, _ = self._inputs
+        wp.launch(
+            dist_kernels.dist_scatter,
+            dim=self.grid.n_cells,
+            inputs=[
+                self._cells[in_frame],
+                self.keys,
+                self.gids if self.n else self._no_int,
+                self.caller,
+                self._flip,
+                self.reduced,
+            ],
+            outputs=[self.counts],
+            device=self.device,
+        )
+
+    def _reduce_scatter(self) -> None:
+        self.launch_to_global()
+        self.launch_reduce()
+        if self.n:
+            self.launch_scatter()
+
+    def _reduce_area(self, particles) -> None:
+        """The area criterion: merge the D-slot lists over ranks (D rounds of MIN), gather the geometry of every
+        particle into a table indexed by global id (an integer SUM of bit patterns), and run the area kernel on
+        the whole grid with that table; each rank keeps its own particles' units."""
+        d = self.device
+        in_frame, _ = self._inputs
+        wp.launch(
+            dist_kernels.dist_keys_to_global,
+            dim=self.keys.shape[0],
+            inputs=[self.keys, self.gids if self.n else self._no_int, 0],
+            outputs=[self.reduced],
+            device=d,
+        )
+        lists = self._round.shape[0]
+        for k in range(self.depth_slots):
+            wp.launch(
+                dist_kernels.dist_merge_offer,
+                dim=lists,
+                inputs=[self.reduced, self.merged, self.depth_slots, k, self._flip],
+                outputs=[self._round],
+                device=d,
+            )
+            self.comm.allreduce(self._round, "min")
+            wp.launch(
+                dist_kernels.dist_merge_take,
+                dim=lists,
+                inputs=[self._round, self.depth_slots, k, self._flip],
+                outputs=[self.merged],
+                device=d,
+            )
+        self._table_positions.zero_()
+        self._table_radii.zero_()
+        self._table_counts.zero_()
+        if self.n:
+            wp.launch(
+                dist_kernels.dist_table_fill,
+                dim=self.n,
+                inputs=[particles.positions, particles.radii, self.gids],
+                outputs=[self._table_positions, self._table_radii],
+                device=d,
+            )
+        # Integer sums of bit patterns: only the owning rank's entry is nonzero, and x + 0 = x exactly.
+        for words in self._table_words:
+            self.comm.allreduce(words, "sum")
+        wp.launch(
+            area_kernels.area_cells,
+            dim=self.grid.n_cells,
+            inputs=[
+                self._cells[in_frame],
+                self._table,
+                self.merged,
+                self.depth_slots,
+                self._rays[in_frame].offset,
+                self.lamp_mask,
+                area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
+                self.subpoints,
+                self.unit,
+            ],
+            outputs=[self._table_counts, self.diag[2:]],
+            device=d,
+        )
+        if self.n:
+            wp.launch(
+                dist_kernels.dist_counts_gather,
+                dim=self.n,
+                inputs=[self._table_counts, self.gids, self.caller],
+                outputs=[self.counts],
+                device=d,
+            )
+
+    # --- forces (local) ----------------------------------------------------------------------------------------
+
+    def _force_area(self) -> np.ndarray:
+        return self.grid.cell_area / float(self.unit)
+
+    def force_factors(self, pressure) -> np.ndarray:
+        """F[j, a]: world force component j [N] per count on lamp axis a, as ``ShiningLamp.force_factors``."""
+        p, _ = lamp_pressure(pressure, self.grid.rotation)
+        check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1])
+        return lamp_force_factors(p, self._force_area(), self.grid.rotation)
+
+    def add_forces(self, forces: wp.array, pressure) -> None:
+        """Add the rank's particles' forces of the last update to ``forces`` (caller's rows), in world coordinates;
+        as ``ShiningLamp.add_forces`` (float32, each the correctly rounded exact force).
+
+        Args:
+            forces: Force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
+            pressure: Fluid pressure [Pa]: a number, three numbers, a stress tensor diagonal in the lamp frame, or
+                a warp float32 array of 1 or 3 values on the device.
+        """
+        if self._inputs is None:
+            raise RuntimeError("add_forces: no counts yet; call DistributedLamp.update first")
+        check_warp_array("forces", forces, wp.vec3, self.device, "the lamp", self.n)
+        const = wp.vec3d(0.0, 0.0, 0.0)
+        arr = self._no_pressure
+        if isinstance(pressure, wp.array):
+            check_warp_array("pressure", pressure, wp.float32, self.device, "the lamp")
+            if pressure.shape[0] not in (1, 3):
+                raise ValueError(f"pressure: a device array must hold 1 or 3 values, got {pressure.shape[0]}")
+            arr = pressure
+        else:
+            p, _ = lamp_pressure(pressure, self.grid.rotation)
+            cells = self.grid.counts[:, 0] * self.grid.counts[:, 1]
+            check_force_range(p, self.grid.cell_area, cells)
+            check_force_range(p, self.grid.cell_area, cells, float32=True)
+            const = wp.vec3d(*p)
+        if self.n > 0:
+            in_frame = self._inputs[0]
+            wp.launch(
+                lamp_kernels.lamp_add_forces,
+                dim=self.n,
+                inputs=[
+                    self.counts,
+                    wp.vec3d(*self._force_area()),
+                    self._cells[True].rotation if in_frame else self.rotation,
+                    const,
+                    arr,
+                ],
+                outputs=[forces],
+                device=self.device,
+            )
+
+    def counts_numpy(self) -> np.ndarray:
+        """The rank's signed counts of the last update, shape (N, 3), int64, in the caller's rows."""
+        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+
+    def forces_numpy(self, pressure) -> np.ndarray:
+        """The rank's exact float64 forces of the last update [N], shape (N, 3), caller's rows."""
+        c = self.counts_numpy()
+        f = self.force_factors(pressure)
+        return (c[:, :1] * f[:, 0] + c[:, 1:2] * f[:, 1]) + c[:, 2:3] * f[:, 2]
+
+    def reduced_keys_numpy(self) -> np.ndarray:
+        """The reduced keys of the last update (global ids), as ``ShiningLamp.keys``: criteria 0 and 1, two per
+        cell; area criterion, the merged D-slot lists."""
+        if self.criterion == "area":
+            return self.merged.numpy()
+        keys = self.reduced.numpy()
+        return keys ^ _TOP if self._flip else keys
+
+    def diagnostics(self) -> DistributedDiagnostics:
+        """Owners, depths and lit cells of the whole grid, the rank's counts and surface flags, and the skip
+        counters summed over ranks (collective: every rank must call it)."""
+        if self._inputs is None:
+            raise RuntimeError("diagnostics: no update yet")
+        keys = self.reduced_keys_numpy()
+        corners = self.criterion == "area"
+        if corners:
+            keys = keys.reshape(-1, self.depth_slots)[:, 0]
+        owners, depths = lamp_owner_maps(keys, self.grid, corners=corners)
+        lit = {name: int((own >= 0).sum()) for name, own in owners.items()}
+        mine = self.gids.numpy() if self.n else np.zeros(0, np.int32)
+        rows = self.caller.numpy() if self.caller.shape[0] else np.arange(self.n)
+        surface = np.zeros(self.n, dtype=bool)
+        lit_ids = np.unique(
+            np.concatenate([own[own >= 0].ravel() for own in owners.values()] + [np.zeros(0, np.int64)])
+        )
+        surface[rows[np.isin(mine, lit_ids)]] = True
+        diag = self.diag.numpy().astype(np.int64)
+        skipped = self.comm.allreduce_host(diag[:2].copy(), "sum")
+        out = LampDiagnostics(
+            self.counts_numpy(), self.unit, surface, owners, depths, lit, int(skipped[0]), int(skipped[1]),
+            int(diag[2]), int(diag[3]),
+        )  # fmt: skip
+        return DistributedDiagnostics(out, self.comm.size, self.n_total, self.reduction_bytes)
+
+
+# --- the agreed grid ------------------------------------------------------------------------------------------------
+
+
+def enclosing_grid(
+    comm,
+    centers,
+    radii,
+    global_ids,
+    *,
+    cells_per_diameter: float = 4,
+    margin: float | None = None,
+    rotation=None,
+    probe_radius: float = 0.0,
+    mean_diameter: float | None = None,
+    device=None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+) -> LampGrid:
+    """:meth:`LampGrid.enclosing` of all ranks' particles, the same grid on every rank (collective).
+
+    "Agreed" means bitwise equal to ``LampGrid.enclosing`` on all particles in global-id order: the box is the MIN
+    of (c - r) and the MAX of (c + r) over ranks (exact in any order), and the cell is the mean diameter over
+    cells_per_diameter, where the mean is NumPy's mean of all radii in global-id order, which every rank computes
+    from an all-gather of (id, radius) pairs: 12 bytes per particle of the whole body, once. NumPy's pairwise sum
+    depends on the order of its terms, so no per-rank partial sums would reproduce it bitwise. At scale, pass
+    ``mean_diameter`` (e.g. from the material's size distribution) to skip the gather; the grid then equals
+    ``LampGrid.enclosing`` only if that mean is bitwise the same.
+
+    Args:
+        comm: The communicator (:func:`as_collective`).
+        centers: The rank's particle centres [m], world coordinates, shape (N, 3) (N may be 0 on some ranks).
+        radii: The rank's radii [m], shape (N,).
+        global_ids: The rank's global ids, shape (N,).
+        cells_per_diameter: Cells per mean particle diameter.
+        margin: Free space around the box [m] (default: one mean diameter plus ``probe_radius``).
+        rotation: Orientation of the lamp frame.
+        probe_radius: Wetted-surface probe radius [m], added to the default margin.
+        mean_diameter: The body's mean particle diameter [m], if known: no all-gather.
+        device: The rank's Warp device, for collectives that reduce device memory.
+        max_bytes: Budget for the per-cell arrays [bytes].
+    """
+    coll = as_collective(comm, device)
+    error = None
+    try:
+        c, r = check_particles(centers, radii)
+        ids = _check_ids(global_ids, len(r))
+        ids = ids.numpy() if isinstance(ids, wp.array) else ids
+        cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
+        rot = lamp_rotation(rotation)
+        probe_radius = check_positive("probe_radius", probe_radius, allow_zero=True)
+        if margin is not None:
+            margin = check_positive("margin", margin, allow_zero=True)
+        if mean_diameter is not None:
+            mean_diameter = check_positive("mean_diameter", mean_diameter)
+    except (TypeError, ValueError) as e:
+        error = e
+    _agree(coll, error, "enclosing_grid")
+    n = len(r)
+    if n:
+        frame = c @ rot  # frame coordinates: R^T x for each row x, as LampGrid.enclosing
+        lo_local = np.min(frame - r[:, None], axis=0)
+        hi_local = np.max(frame + r[:, None], axis=0)
+    else:
+        lo_local, hi_local = np.full(3, np.inf), np.full(3, -np.inf)
+    lo_core = coll.allreduce_host(lo_local, "min")
+    hi_core = coll.allreduce_host(hi_local, "max")
+    total = int(coll.allreduce_host(np.array([n], dtype=np.int64), "sum")[0])
+    if total == 0:
+        raise ValueError("centers: need at least one particle over all ranks to fit a grid")
+    if mean_diameter is None:
+        all_ids = np.concatenate(coll.allgather_host(ids.astype(np.int64)))
+        all_r = np.concatenate(coll.allgather_host(r))
+        diameter = 2.0 * float(np.mean(all_r[np.argsort(all_ids, kind="stable")]))
+    else:
+        diameter = mean_diameter
+    margin = diameter + probe_radius if margin is None else margin
+    # LampGrid.enclosing's arithmetic from here on, on the reduced box.
+    lo = lo_core - margin
+    hi = hi_core + margin
+    h = diameter / cells_per_diameter
+    with np.errstate(over="ignore", divide="ignore"):
+        counts = np.floor((hi - lo) / h) + 1.0
+    lower = lo - 0.3819660112501051 * (counts * h - (hi - lo))
+    return LampGrid(lower, lower + counts * h, h, rotation=rot, max_bytes=max_bytes)
+
+
+# --- porosity -----------------------------------------------------------------------------------------------------
+
+
+def _fixed_scale(h) -> float:
+    return 2.0**FIXED_POINT_BITS / float(np.prod(h))
+
+
+def porosity_fixed_units(local, radii, h, shape, method: str, device) -> tuple[wp.array, wp.array]:
+    """The sum methods' solid volume per cell as int64 units of 2^-40 of a cell's volume (one rank's spheres).
+
+    Each sphere-cell volume is computed as ``porosity``'s kernels do, then rounded to a whole number of units and
+    added as an integer, so that the sum is the same in every order and every split of the spheres.
+
+    Args:
+        local: Sphere centres relative to the box's lower corner [m], shape (N, 3), float64.
+        radii: Radii [m], shape (N,), float64.
+        h: Cell edges [m], 3 values.
+        shape: Cells along x, y, z.
+        method: ``"centroid"``, ``"polyhedron"`` or ``"exact"``.
+        device: Warp device.
+
+    Returns:
+        (units, overflow): int64 units per cell, shape ``shape``; and one int32 counting adds that would have
+        passed 2^63 (then left out).
+    """
+    device = wp.get_device(device)
+    units = wp.zeros(shape, dtype=wp.int64, device=device)
+    overflow = wp.zeros(1, dtype=wp.int32, device=device)
+    if len(radii):
+        code = {
+            "centroid": dist_kernels.FIXED_CENTROID,
+            "polyhedron": dist_kernels.FIXED_CUBE,
+            "exact": dist_kernels.FIXED_EXACT,
+        }[method]
+        wp.launch(
+            dist_kernels.porosity_fixed,
+            dim=len(radii),
+            inputs=[
+                wp.array(local, dtype=wp.vec3d, device=device),
+                wp.array(radii, dtype=wp.float64, device=device),
+                wp.vec3d(*h),
+                wp.vec3i(*shape),
+                code,
+                _fixed_scale(h),
+            ],
+            outputs=[units, overflow],
+            device=device,
+        )
+    return units, overflow
+
+
+def porosity_distributed(
+    comm,
+    centers,
+    radii,
+    lower,
+    upper,
+    shape,
+    *,
+    method: str = "voxel",
+    subdivisions=8,
+    device=None,
+    midpoint_algorithm: int | None = None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+) -> np.ndarray:
+    """:func:`~warp_lamp.porosity` of all ranks' spheres, returned on every rank (collective).
+
+    Union methods (``"voxel"``, ``"midpoint"``): each rank marks its spheres on the sub-cell bitmap, a bitwise-OR
+    all-reduce makes the union (``porosity_bitmap_bytes`` bytes per rank; NCCL, which has no OR, gathers ``size``
+    times that), and every rank counts it: **bitwise equal** to ``porosity`` on all spheres, for any split. A halo
+    of particles near each rank's region would send fewer bytes for a spatial split, but needs the split to be
+    spatial; the bitmap works for any.
+
+    Sum methods (``"centroid"``, ``"polyhedron"``, ``"exact"``): each sphere-cell volume is rounded to int64 units
+    of 2^-40 of a cell's volume and summed as integers (:func:`porosity_fixed_units`), then all-reduced by SUM
+    (8 bytes per cell): **bitwise equal for any split and any number of ranks** (an integer sum does not depend on
+    its order), and 1 - units 2^-40. It is not bitwise equal to ``porosity``, whose float64 atomic sums depend on
+    the order of the adds (on a GPU, from run to run): the two differ by at most 2^-41 per sphere-cell volume in a
+    cell, plus ``porosity``'s own rounding (a few 1e-16 per add).
+
+    The midpoint method's choice of algorithm (the paper's discriminant) uses the sum of the integer sub-cell radii
+    cubed, exact over ranks; ``porosity`` sums 4/3 pi r^3 in float64, so the two could choose differently only where
+    the discriminant's sides agree to about 1e-15 (pass ``midpoint_algorithm`` to fix it).
+
+    Args:
+        comm: The communicator (:func:`as_collective`).
+        centers: The rank's sphere centres [m], shape (N, 3) (N may be 0).
+        radii: The rank's radii [m], shape (N,).
+        lower: Lower corner of the box [m], 3 values, the same on every rank.
+        upper: Upper corner [m].
+        shape: Cells along x, y, z.
+        method: One of :data:`~warp_lamp.POROSITY_METHODS`.
+        subdivisions: Sub-cells per cell edge (union methods).
+        device: The rank's Warp device.
+        midpoint_algorithm: Force Algorithm 1 or 2 of the midpoint method.
+        max_bytes: Budget for the rank's device memory [bytes].
+
+    Returns:
+        Porosity, shape ``shape``, float64, on every rank.
+    """
+    coll = as_collective(comm, device)
+    device = coll.device
+    error = None
+    try:
+        c, r = check_particles(centers, radii)
+        lo, hi = check_box(lower, upper)
+        shape = check_shape(shape)
+        if not isinstance(method, str) or method not in POROSITY_METHODS:
+            raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
+        per_axis = not isinstance(subdivisions, (int, np.integer))
+        s = check_subdivisions(subdivisions)
+        if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
+            raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
+        h = (hi - lo) / np.asarray(shape)
+        if method == "midpoint":
+            s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
+        cells = int(np.prod(shape))
+        if POROSITY_METHODS[method] == "sum":
+            need = 8 * cells + 32 * len(r)
+            check_budget(need, max_bytes, f"shape: {shape} cells need {format_bytes(need)}", "use fewer cells")
+        else:
+            need = porosity_bitmap_bytes(shape, s) * (1 if coll.name in ("mpi", "local") else 1 + coll.size)
+            need += 8 * cells + 32 * len(r)
+            check_budget(need, max_bytes, f"subdivisions: {s} on shape {shape} need {format_bytes(need)}", "coarsen")
+        digest = _fingerprint(lo, hi, np.asarray(shape), np.asarray(s), method, midpoint_algorithm)
+        if not np.array_equal(coll.allreduce_host(digest, "min"), digest):
+            raise ValueError("lower: the ranks passed different boxes, shapes, methods or subdivisions")
+    except (TypeError, ValueError) as e:
+        error = e
+    _agree(coll, error, "porosity_distributed")
+    local = c - lo
+    if POROSITY_METHODS[method] == "sum":
+        units, overflow = porosity_fixed_units(local, r, h, shape, method, device)
+        flat = units.flatten()
+        coll.allreduce(flat, "sum")
+        over = int(coll.allreduce_host(overflow.numpy(), "sum")[0])
+        if over:
+            raise ValueError(
+                f"radii: {over} sphere-cell volumes overflowed the int64 fixed-point sums (a cell holding over 2^23 "
+                "cell volumes of sphere); use larger cells"
+            )
+        return 1.0 - flat.numpy().reshape(shape).astype(np.float64) * 2.0**-FIXED_POINT_BITS
+    sub = tuple(int(x) * k for x, k in zip(shape, s, strict=True))
+    hs = h / np.asarray(s)
+    algorithm = midpoint_algorithm
+    if method == "midpoint" and algorithm is None:
+        algorithm = _agreed_midpoint_algorithm(coll, r, hs, sub)
+    error = None
+    try:
+        bits = porosity_mark_union(method, local, r, hs, sub, device, algorithm=algorithm)
+    except ValueError as e:
+        error = e
+    _agree(coll, error, "porosity_distributed")
+    coll.allreduce(bits, "bor")
+    counts = wp.zeros(shape, dtype=wp.int64, device=device)
+    count_bitmap(bits, shape, s, counts)
+    return 1.0 - counts.numpy().astype(np.float64) / float(s[0] * s[1] * s[2])
+
+
+def _agreed_midpoint_algorithm(coll: Collective, radii, hs, sub) -> int:
+    """The paper's discriminant over all ranks: 4/3 pi sum r^3 > 8 K R^3 with r the integer sub-cell radii (as
+    ``porosity``'s ``_midpoint_spheres``), their cubes summed exactly as integers."""
+    h = float(np.min(hs))
+    rad = np.maximum(np.rint(np.asarray(radii, dtype=np.float64) / h), 1.0)
+    values, repeats = np.unique(rad, return_counts=True)
+    cubes = sum(int(v) ** 3 * int(m) for v, m in zip(values, repeats, strict=True))
+    # Exact integer sum across ranks: int64 words of the Python integer, added as int64 base-2^31 limbs.
+    limbs = np.array([(cubes >> (31 * k)) & ((1 << 31) - 1) for k in range(4)], dtype=np.int64)
+    total_limbs = coll.allreduce_host(limbs, "sum")
+    total = sum(int(x) << (31 * k) for k, x in enumerate(total_limbs))
+    rmax = float(coll.allreduce_host(np.array([rad.max() if len(rad) else 0.0]), "max")[0])
+    if total == 0:
+        return 1
+    k = float(sub[0] * sub[1] * sub[2])
+    return 2 if 4.0 / 3.0 * math.pi * float(total) > 8.0 * k * rmax**3 else 1

@@ -1,0 +1,115 @@
+"""NumPy references of the distributed kernels (``kernels/distributed.py``): keys to global ids, the top-bit flip, the
+merge of D-slot key lists over ranks, the owner test of the scatter, and the fixed-point porosity sums."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from warp_lamp.reference.porosity import sphere_box_volume
+
+__all__ = [
+    "EMPTY_KEY",
+    "fixed_units_reference",
+    "global_keys_reference",
+    "merge_lists_reference",
+    "scatter_reference",
+]
+
+EMPTY_KEY = np.uint64(0xFFFFFFFFFFFFFFFF)
+_TOP = np.uint64(1 << 63)
+_LOW = np.uint64(0xFFFFFFFF)
+
+
+def global_keys_reference(keys, gids, *, flip: bool = False) -> np.ndarray:
+    """Keys whose low 32 bits (a local index i) become gids[i]; EMPTY stays EMPTY; with ``flip`` the top bit of
+    every result is inverted (unsigned order read as signed order).
+
+    Args:
+        keys: uint64 keys, shape (M,).
+        gids: Global id of each local index, shape (N,).
+        flip: Xor the top bit.
+    """
+    keys = np.asarray(keys, dtype=np.uint64)
+    out = keys.copy()
+    lit = keys != EMPTY_KEY
+    local = (keys[lit] & _LOW).astype(np.int64)
+    out[lit] = (keys[lit] & ~_LOW) | np.asarray(gids, dtype=np.int64)[local].astype(np.uint64)
+    return out ^ _TOP if flip else out
+
+
+def merge_lists_reference(lists) -> np.ndarray:
+    """Per row, the D smallest distinct keys of the union of the ranks' rows, ascending, EMPTY padded.
+
+    Args:
+        lists: One uint64 array per rank, shape (M, D) each.
+    """
+    stacked = np.concatenate([np.asarray(x, dtype=np.uint64) for x in lists], axis=1)
+    d = np.asarray(lists[0]).shape[1]
+    out = np.full((stacked.shape[0], d), EMPTY_KEY, dtype=np.uint64)
+    for m, row in enumerate(stacked):
+        keep = np.unique(row[row != EMPTY_KEY])[:d]
+        out[m, : len(keep)] = keep
+    return out
+
+
+def scatter_reference(reduced, keys, gids, caller, axis_of_cell, n) -> np.ndarray:
+    """The counts one rank scatters: +1 (low lamp) / -1 (high lamp) on the cell's axis to the caller row of the
+    rank's owner, for every cell whose reduced key is the rank's own key in global ids.
+
+    Args:
+        reduced: Reduced keys (global ids), two per cell, shape (2 C,).
+        keys: The rank's keys (local indices in id order), shape (2 C,).
+        gids: Global id of each local index, shape (N,).
+        caller: Caller row of each local index, shape (N,), or empty for the identity.
+        axis_of_cell: Each cell's axis, shape (C,).
+        n: Particles of the rank.
+    """
+    counts = np.zeros((n, 3), dtype=np.int64)
+    mine = global_keys_reference(keys, gids)
+    for slot in np.flatnonzero((np.asarray(reduced) != EMPTY_KEY) & (mine == np.asarray(reduced))):
+        i = int(keys[slot] & _LOW)
+        row = int(caller[i]) if len(caller) else i
+        counts[row, axis_of_cell[slot // 2]] += 1 if slot % 2 == 0 else -1
+    return counts
+
+
+def fixed_units_reference(local, radii, h, shape, method: str, bits: int = 40) -> np.ndarray:
+    """Per cell, the sum over spheres of round(v 2^bits / cell volume), v the sphere-cell volume in float64: the
+    whole sphere in the cell of its centre (``"centroid"``), its bounding cube's overlap (``"polyhedron"``) or the
+    exact ball-box volume (``"exact"``); int64 (Python integers summed).
+
+    Args:
+        local: Centres relative to the box's lower corner [m], shape (N, 3).
+        radii: Radii [m], shape (N,).
+        h: Cell edges [m], 3 values.
+        shape: Cells along x, y, z.
+        method: ``"centroid"``, ``"polyhedron"`` or ``"exact"``.
+        bits: Fractional bits of a cell volume.
+    """
+    local = np.asarray(local, dtype=np.float64).reshape(-1, 3)
+    radii = np.asarray(radii, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    shape = tuple(int(x) for x in shape)
+    scale = 2.0**bits / float(np.prod(h))
+    units = np.zeros(shape, dtype=np.int64)
+    for c, r in zip(local, radii, strict=True):
+        if method == "centroid":
+            idx = np.floor(c / h)
+            if np.all((idx >= 0) & (idx < shape)):
+                units[tuple(idx.astype(int))] += int(np.floor(4.0 / 3.0 * np.pi * r**3 * scale + 0.5))
+            continue
+        first = np.clip(np.floor((c - r) / h), 0, np.asarray(shape) - 1).astype(int)
+        last = np.clip(np.floor((c + r) / h), 0, np.asarray(shape) - 1).astype(int)
+        if np.any(c + r < 0) or np.any(c - r >= h * shape):
+            continue
+        for i in range(first[0], last[0] + 1):
+            for j in range(first[1], last[1] + 1):
+                for k in range(first[2], last[2] + 1):
+                    lo = np.array([i, j, k]) * h - c
+                    if method == "exact":
+                        v = float(sphere_box_volume(lo, lo + h, r))
+                    else:
+                        v = float(np.prod(np.maximum(np.minimum(lo + h, r) - np.maximum(lo, -r), 0.0)))
+                    if v > 0:
+                        units[i, j, k] += int(np.floor(v * scale + 0.5))
+    return units
