@@ -9,7 +9,7 @@
 #      CUDA over CuPy NCCL and over torch NCCL.
 #   4. Two GPUs: whether torch.distributed records into a Warp graph (its own run, last).
 # Writes $OUT/h100-x2-distributed.json (copy it to bench/results/h100-x2-<date>-distributed.json) and prints a table.
-source "$(dirname "$0")/../preamble.sh"
+# Run through bench/gpu/lease.sh (which sources the preamble): bash bench/gpu/lease.sh distributed
 # NVLink multicast stays off (the device README): NCCL's NVLS, torch's symmetric memory, NVSHMEM.
 export NCCL_NVLS_ENABLE=0 TORCH_SYMM_MEM_DISABLE_MULTICAST=1 NVSHMEM_DISABLE_NVLS=1
 RUN="python3 -m torch.distributed.run --standalone"
