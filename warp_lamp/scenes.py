@@ -493,7 +493,7 @@ def scene_slot_block(
     depth: int = 8,
     **lattice,
 ) -> CutScene:
-    """Issue 10's slot block: a jittered cubic block with a slot cut along x into its top face.
+    """The slot block of the wetted-surface checks: a jittered cubic block with a slot cut along x into its top face.
 
     The slot removes the ``width`` middle columns in y (iy in [j0, j0 + width)) of the top ``depth`` layers in z,
     over the whole length in x. ``cut`` holds ``length`` L, ``width`` w, ``depth`` D (in lattice spacings times
