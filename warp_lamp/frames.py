@@ -140,7 +140,7 @@ def lamp_pressure(pressure, rotation=None) -> tuple[np.ndarray, np.ndarray | Non
     if off > 1e-9 * max(scale, np.finfo(float).tiny):
         raise ValueError(
             f"pressure: the stress tensor is not diagonal in the lamp frame (shear {off:.4g} Pa there): build the "
-            "grid with rotation=warp_lamp.lamp_stress_frame(sigma)[0], or pass the tensor without a grid"
+            "grid with rotation=warp_lamp.frames.lamp_stress_frame(sigma)[0], or pass the tensor without a grid"
         )
     p = np.diag(local).copy()
     # Rounding of the frame leaves principal values of a pure shear's null axis at about 1e-16 of the scale.

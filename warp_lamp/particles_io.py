@@ -117,9 +117,8 @@ class ParticlesInfo:
             f"read {self.count:,} particles from {self.path} ({self.format}{step}; {self.columns})",
             f"centres from ({lo}) to ({hi}); radii {self.radius_min:.4g} .. {self.radius_max:.4g}, "
             f"mean {self.radius_mean:.4g}",
-            f"units: {self.units}",
         ]
-        return "\n".join(lines + list(self.notes))
+        return "\n".join([*lines, *self.notes, f"units: {self.units}"])
 
 
 def guess_units(radii: np.ndarray) -> str:
