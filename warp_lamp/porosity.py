@@ -188,8 +188,9 @@ def _warn_midpoint_rounding(local, radii, hs, sub, s) -> None:
     # Five sub-cells of radius keep the midpoint sphere within about 1% of its volume (Table 1).
     need = int(np.ceil(5.0 / median * min(s)))
     how = f"{factor:,.0f} times" if factor > 1 else f"{factor:.2f} of"
+    unit = "sub-cell" if median == 1 else "sub-cells"
     warnings.warn(
-        f"subdivisions: with {format_value(tuple(s))} sub-cells per cell the spheres are {median:.3g} sub-cell{'' if median == 1 else 's'} in "
+        f"subdivisions: with {format_value(tuple(s))} sub-cells per cell the spheres are {median:.3g} {unit} in "
         f"radius (median); the midpoint method rounds radii to whole sub-cells (at least 1), which gives them {how} "
         f"their true volume; use subdivisions >= {need:,} (5 sub-cells per radius), or method='voxel' or 'exact'",
         RuntimeWarning,

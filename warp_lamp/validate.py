@@ -390,9 +390,7 @@ def check_subdivisions(subdivisions) -> tuple[int, int, int]:
             return tuple(int(x) for x in items)
     elif not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= 1:
         return (int(value),) * 3
-    raise ValueError(
-        f"subdivisions: expected an integer >= 1, or three (x, y, z), got {format_value(subdivisions)}"
-    )
+    raise ValueError(f"subdivisions: expected an integer >= 1, or three (x, y, z), got {format_value(subdivisions)}")
 
 
 def check_max_bytes(max_bytes) -> float:
