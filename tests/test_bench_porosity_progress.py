@@ -1,5 +1,7 @@
 """`bench porosity --paper` says how long it takes before it starts, and its progress bar covers all of it."""
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,7 @@ from warp_lamp.scenes import Scene
 class Recorder:
     """A Progress stand-in that records its total, each step and its close, in order, in ``Recorder.events``."""
 
-    events: list = []
+    events: ClassVar[list] = []
 
     def __init__(self, total, desc, *, enabled=True):
         Recorder.events.append(("open", total))

@@ -713,9 +713,12 @@ def format_modes(result: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_area(ax, result: dict) -> None:
+def plot_area(ax, result: dict) -> list:
     """Update time against the specimen's per-particle force error (the ``area`` section), on a matplotlib axes:
-    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager)."""
+    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager). Returns the point labels
+    (``(text, (x, y), fontsize)``) for :func:`warp_lamp.bench.place_labels`, which the caller places once the
+    figure's layout is fixed."""
+    labels = []
     colours = {}
     sections = result.get("area") or []
     # The benchmark writes a section per device; CPU curves are labelled only where no GPU ran (one legend entry
@@ -743,12 +746,10 @@ def plot_area(ax, result: dict) -> None:
                 label=name if cuda or not has_cuda else None,
             )
             if cuda or not has_cuda:
-                for r, x, y in zip(pts, err, t, strict=True):
-                    ax.annotate(
-                        f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
-                    )
+                labels += [(f"d/{r['cells_per_diameter']:g}", (x, y), 6) for r, x, y in zip(pts, err, t, strict=True)]
         ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres)", fontsize=9)
-    ax.set_xlabel("per-particle force RMS [%] vs exact visible areas")
-    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)")
+    ax.set_xlabel("per-particle force error [%], RMS, vs exact visible areas", fontsize=9)
+    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, loc="upper right")
+    return labels
