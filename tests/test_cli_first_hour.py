@@ -177,7 +177,7 @@ MODES = [
 @pytest.mark.parametrize(
     ("flags", "options"), MODES, ids=["default", "area-exact", "area-sub", "wetted", "lamps", "per-axis", "stress"]
 )
-def test_every_mode_on_your_particles_matches_lamp_forces(capsys, tmp_path, ball_csv, flags, options):
+def test_every_mode_on_your_particles_matches_lamp_forces(capsys, tmp_path, ball_csv, flags, options, device):
     """`run --particles FILE` in each mode writes per-particle forces (VTK) bitwise equal to lamp_forces with the
     same options on the same grid, 'lit' as an integer array, and the inputs (pressure, criterion, cells per
     diameter) as field data and in the JSON."""
@@ -186,7 +186,7 @@ def test_every_mode_on_your_particles_matches_lamp_forces(capsys, tmp_path, ball
 
     path, centers, radii = ball_csv
     out, vtk = tmp_path / "r.json", tmp_path / "vtk"
-    argv = ["--particles", str(path), "--device", "cpu", "--repeats", "1", "--json", str(out), "--vtk", str(vtk)]
+    argv = ["--particles", str(path), "--device", device, "--repeats", "1", "--json", str(out), "--vtk", str(vtk)]
     assert cli.main([*argv, *flags]) == 0
     text = capsys.readouterr().out
     assert "read 387 particles" in text and "converted to metres" in text
@@ -200,7 +200,7 @@ def test_every_mode_on_your_particles_matches_lamp_forces(capsys, tmp_path, ball
     grid = wl.LampGrid.enclosing(
         centers, radii, cells_per_diameter=4, rotation=rotation, probe_radius=options.get("probe_radius", 0.0)
     )
-    expect = wl.lamp_forces(centers, radii, pressure, grid=grid, device="cpu", **options)
+    expect = wl.lamp_forces(centers, radii, pressure, grid=grid, device=device, **options)
     forces, _ = read_vtk(vtk / "particles_forces.vtu", "force")
     np.testing.assert_array_equal(forces, expect)
     lit, lit_type = read_vtk(vtk / "particles_forces.vtu", "lit")
@@ -218,12 +218,12 @@ def test_every_mode_on_your_particles_matches_lamp_forces(capsys, tmp_path, ball
 
 
 @pytest.mark.filterwarnings("error")
-def test_frames_and_a_porosity_grid_on_your_particles(capsys, tmp_path, ball_csv):
+def test_frames_and_a_porosity_grid_on_your_particles(capsys, tmp_path, ball_csv, device):
     """--frames 4 averages (exact balance, directions nearer the radial than one frame), and --grid, --box,
     --method, --subdivisions give the porosity grid the report and the VTK file hold."""
     path = ball_csv[0]
     out = tmp_path / "r.json"
-    argv = ["--particles", str(path), "--device", "cpu", "--repeats", "1", "--json", str(out), "--frames", "4"]
+    argv = ["--particles", str(path), "--device", device, "--repeats", "1", "--json", str(out), "--frames", "4"]
     argv += ["--grid", "2", "2", "3", "--box", "-0.03", "-0.03", "-0.03", "0.03", "0.03", "0.06"]
     argv += ["--method", "midpoint", "--subdivisions", "48"]
     assert cli.main(argv) == 0
@@ -233,7 +233,8 @@ def test_frames_and_a_porosity_grid_on_your_particles(capsys, tmp_path, ball_csv
     assert p["method"] == "midpoint" and p["shape"] == [2, 2, 3] and p["subdivisions"] == 48
     assert p["box_m"] == [[-0.03, -0.03, -0.03], [0.03, 0.03, 0.06]]
     _, centers, radii = ball_csv
-    eps = wl.porosity(centers, radii, [-0.03] * 3, [0.03, 0.03, 0.06], (2, 2, 3), method="midpoint", subdivisions=48)
+    box = ([-0.03] * 3, [0.03, 0.03, 0.06])
+    eps = wl.porosity(centers, radii, *box, (2, 2, 3), method="midpoint", subdivisions=48, device=device)
     assert [p["min"], p["mean"], p["max"]] == [eps.min(), eps.mean(), eps.max()]
     assert p["max"] == 1.0 and p["min"] < 0.9  # the top layer of cells is empty, the others hold the ball
     assert "averaged over 4 frames" in capsys.readouterr().out
