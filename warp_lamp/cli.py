@@ -150,7 +150,12 @@ _RUN_OPTIONS = [
         ),
     ),
     # the lamp
-    (("--device",), "device", None, dict(help="Warp device, e.g. cpu or cuda:0 (default: Warp's default)")),
+    (
+        ("--device",),
+        "device",
+        None,
+        dict(metavar="NAME", help="Warp device, e.g. cpu or cuda:0 (default: Warp's default)"),
+    ),
     (
         ("--cells-per-diameter",),
         "cells_per_diameter",
@@ -336,7 +341,7 @@ def _add_run_options(parser, prefix: str) -> None:
         kw = dict(kw)
         help_text = kw.pop("help")
         if default is not None and "default" not in help_text:
-            shown = " ".join(f"{v:g}" for v in default) if isinstance(default, list) else default
+            shown = f"{default:g}" if isinstance(default, float) and default >= 1e4 else default
             help_text += f" (default: {shown})"
         group = groups.setdefault(_group_of(dest), parser.add_argument_group(_group_of(dest)))
         group.add_argument(*flags, dest=prefix + dest, default=None, help=help_text, **kw)
