@@ -4,6 +4,7 @@ pip install ".[plot]" && python examples/owner_map.py --out docs/owner_map.png
 """
 
 import argparse
+import sys
 
 import numpy as np
 import warp as wp
@@ -11,28 +12,35 @@ import warp as wp
 import warp_lamp as wl
 from warp_lamp.scenes import scene_sphere_specimen
 
+#: Each lamp drawn, and its colour.
+LAMP_COLOURS = (("+x", "tab:red"), ("+y", "tab:green"), ("+z", "tab:blue"))
 
-def main():
+
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", default="owner_map.png")
     parser.add_argument("--ratios", default="2,4,8,16", help="cells per mean diameter, one panel each")
     parser.add_argument("--device", default=None)
-    args = parser.parse_args()
-    import matplotlib
+    args = parser.parse_args(argv)
+    try:
+        import matplotlib
+    except ImportError:
+        sys.exit("owner_map.py needs matplotlib: pip install '.[plot]' in a clone, or pip install 'warp-lamp[plot]'")
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     wp.config.log_level = wp.LOG_WARNING
     scene = scene_sphere_specimen()
     ratios = [float(k) for k in args.ratios.split(",")]
-    fig = plt.figure(figsize=(4 * len(ratios), 4.4))
+    fig = plt.figure(figsize=(4 * len(ratios), 4.6))
     for p, k in enumerate(ratios):
         lamp = wl.lamp_update(scene.centers, scene.radii, cells_per_diameter=k, device=args.device)
         d = lamp.diagnostics()
         ax = fig.add_subplot(1, len(ratios), p + 1, projection="3d")
-        for a, color in enumerate(("red", "green", "blue")):
-            name = wl.LAMPS[2 * a + 1]
+        for name, color in LAMP_COLOURS:
+            a = "xyz".index(name[1])
             u, v = lamp.grid.cell_centers(a)
             uu, vv = np.meshgrid(u, v, indexing="ij")
             depth = d.depths[name]
@@ -49,10 +57,16 @@ def main():
         ax.set_zlabel("z [mm]")
         ax.view_init(elev=25, azim=45)
         ax.set_box_aspect((1, 1, 1))
-    fig.suptitle("Shining lamp on the SphereTest specimen: +x (red), +y (green), +z (blue) hits, positive octant")
-    fig.tight_layout()
+    handles = [
+        Line2D([], [], ls="", marker="o", color=color, label=f"where the {name} lamp's rays meet a sphere")
+        for name, color in LAMP_COLOURS
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=9, frameon=False)
+    fig.suptitle("Shining lamp on the SphereTest specimen: the first sphere each lamp cell lights, positive octant")
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.savefig(args.out, dpi=110)
     print(f"wrote {args.out}")
+    return fig
 
 
 if __name__ == "__main__":

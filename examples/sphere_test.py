@@ -1,7 +1,10 @@
 """The memo's SphereTest in a minimal Warp DEM: a 100 mm ball of 5 mm particles held by a 10 MPa shining lamp.
 
-    python examples/sphere_test.py                      # the four resolutions, on the default device
+    python examples/sphere_test.py                      # the four resolutions to 40,000 cycles, on a GPU
     python examples/sphere_test.py --cells 4 --steps 3000 --device cpu
+
+On a CPU, with neither --cells nor --steps given, it runs the CI's CPU size instead (2 cells per diameter, 2,500
+cycles: minutes) and says so: the full study is about 160,000 cycles, days on a CPU.
 
 The DEM is ``examples/dem.py`` (shared with ``triaxial.py``): spheres with linear normal and shear springs,
 Coulomb friction, PFC local damping and rotations; no bonds (the pressure holds the body together). Contact
@@ -145,15 +148,36 @@ class SphereTest:
         return self.dem.sphere_stress(self.scene.center, diameter)
 
 
-def main():
+#: The full study: four resolutions, to 40,000 cycles each (a GPU run).
+FULL_CELLS, FULL_STEPS = [2.0, 4.0, 8.0, 16.0], 40000
+#: What a CPU runs when not told otherwise: the CI's size.
+CPU_CELLS, CPU_STEPS = [2.0], 2500
+
+
+def run_size(device, cells, steps) -> tuple[list, int, str | None]:
+    """The resolutions and cycles to run: those given, else the full study on a GPU and the CI's size on a CPU,
+    with a note saying so (None when nothing was chosen for the user)."""
+    if cells is not None or steps is not None or wp.get_device(device).is_cuda:
+        return cells or FULL_CELLS, steps or FULL_STEPS, None
+    note = (
+        f"sphere_test: on a CPU, {CPU_CELLS[0]:g} cells per diameter and {CPU_STEPS:,} cycles (minutes); the full "
+        f"study (--cells 2 4 8 16 --steps {FULL_STEPS}) takes days on a CPU and minutes on a GPU"
+    )
+    return CPU_CELLS, CPU_STEPS, note
+
+
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--cells", type=float, nargs="*", default=[2, 4, 8, 16], help="cells per mean diameter")
-    parser.add_argument("--steps", type=int, default=40000, help="most cycles per run")
+    parser.add_argument("--cells", type=float, nargs="*", default=None, help="cells per mean diameter (2 4 8 16)")
+    parser.add_argument("--steps", type=int, default=None, help="most cycles per run (40,000)")
     parser.add_argument("--update-every", type=int, default=1, help="lamp update every n cycles (ct_pressrate)")
     parser.add_argument("--device", default=None)
     parser.add_argument("--json", default=None, help="write the table as JSON")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
+    args.cells, args.steps, note = run_size(args.device, args.cells, args.steps)
+    if note:
+        print(note, file=sys.stderr, flush=True)
     rows = []
     for k in args.cells:
         test = SphereTest(k, update_every=args.update_every, device=args.device)

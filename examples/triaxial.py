@@ -653,54 +653,83 @@ def _principal(stress) -> tuple[float, float]:
     return float(s[2, 2]), float(0.5 * (s[0, 0] + s[1, 1]))
 
 
-def plot(test: TriaxialTest, path: str) -> None:
-    """The curves to a PNG: q, eps_v and the lamp's lateral stress against eps_a, and the radius profiles."""
-    import matplotlib
+def plot(test: TriaxialTest, path: str):
+    """The curves of a run to a PNG (:func:`plot_history`); returns the figure."""
+    return plot_history(test.summary(), test.history, path)
 
+
+def plot_history(summary: dict, history: dict, path: str):
+    """The curves to a PNG: q, the volumetric strain (dilation shaded) and the lamp's lateral stress against the
+    axial strain, and the radius profiles; from a run's ``summary()`` and ``history``, or from the JSON that
+    ``--json`` writes. Returns the figure (still open, for the caller to inspect or close)."""
+    try:
+        import matplotlib
+    except ImportError:
+        sys.exit("--plot needs matplotlib: pip install '.[plot]' in a clone, or pip install 'warp-lamp[plot]'")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    c = test.history["compression"]
+    sigma3 = summary["sigma3_Pa"]
+    c = history["compression"]
     eps_a = np.array([s["eps_a"] for s in c]) * 100
     q = np.array([s["q"] for s in c]) / 1e3
     eps_v = np.array([s["eps_v"] for s in c]) * 100
-    lat = np.array([s["sigma_lat"] for s in c]) / test.sigma3
+    lat = np.array([s["sigma_lat"] for s in c]) / sigma3
     fig, ax = plt.subplots(2, 2, figsize=(10, 7.5))
     inner = np.array([_principal(s["sphere_stress"]) for s in c]) / 1e3
-    ax[0, 0].plot(eps_a, q, label="platens: mean platen force / envelope area - sigma_3")
-    ax[0, 0].plot(eps_a, inner[:, 0] - inner[:, 1], "--", lw=0.8, label="measurement sphere (core): szz - (sxx+syy)/2")
-    ax[0, 0].set(xlabel="axial strain [%]", ylabel="q = sigma_1 - sigma_3 [kPa]", title="deviator stress")
+    strain = r"axial strain $\varepsilon_a$ [%]"
+    ax[0, 0].plot(eps_a, q, label=r"platens: mean platen force / envelope area $-\ \sigma_3$")
+    ax[0, 0].plot(
+        eps_a,
+        inner[:, 0] - inner[:, 1],
+        "--",
+        lw=0.8,
+        label=r"measurement sphere (core): $\sigma_{zz} - (\sigma_{xx} + \sigma_{yy})/2$",
+    )
+    ax[0, 0].set(xlabel=strain, ylabel=r"$q = \sigma_1 - \sigma_3$ [kPa]", title="deviator stress")
     ax[0, 0].legend(fontsize=8)
     ax[0, 1].plot(eps_a, eps_v)
-    ax[0, 1].set(xlabel="axial strain [%]", ylabel="volumetric strain [%] (compression +)", title="volume change")
-    ax[1, 0].plot(eps_a, lat, label="lamp: lit area x P / silhouette area")
-    net = np.array([s["sigma_lat_net"] for s in c]) / test.sigma3
+    ax[0, 1].axhline(0.0, color="0.5", lw=0.6)
+    if (eps_v < 0).any():
+        ax[0, 1].fill_between(
+            eps_a, eps_v, 0.0, where=eps_v < 0, color="tab:orange", alpha=0.25, label=r"dilation ($\varepsilon_v < 0$)"
+        )
+        ax[0, 1].legend(fontsize=8)
+    ax[0, 1].set(
+        xlabel=strain,
+        ylabel=r"volumetric strain $\varepsilon_v$ [%]",
+        title=r"volume change: $\varepsilon_v > 0$ compaction, $< 0$ dilation",
+    )
+    ax[1, 0].plot(eps_a, lat, label=r"lamp: lit area $\times P$ / silhouette area")
+    net = np.array([s["sigma_lat_net"] for s in c]) / sigma3
     ax[1, 0].plot(eps_a, net, "--", lw=0.8, label="net forces on the particles / silhouette area")
-    ax[1, 0].axhspan(0.97, 1.03, color="0.9", label="+-3%")
-    ax[1, 0].set(xlabel="axial strain [%]", ylabel="sigma_lat / sigma_3", title="the membrane's check")
+    ax[1, 0].axhspan(0.97, 1.03, color="0.9", label=r"$\pm$3%")
+    ax[1, 0].set(xlabel=strain, ylabel=r"$\sigma_\mathrm{lat} / \sigma_3$", title="the membrane's check")
     ax[1, 0].set_ylim(min(0.94, float(net.min()) - 0.01), 1.06)
     ax[1, 0].legend(fontsize=8)
     for frac in (0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0):
         i = int(np.argmin(np.abs(eps_a - frac * eps_a[-1])))
         prof = np.array(c[i]["radius_profile"]) * 1e3
         zs = (np.arange(len(prof)) + 0.5) / len(prof) * c[i]["height"] * 1e3
-        ax[1, 1].plot(prof, zs, label=f"eps_a = {eps_a[i]:.1f}%")
+        ax[1, 1].plot(prof, zs, label=rf"$\varepsilon_a$ = {eps_a[i]:.1f}%")
     ax[1, 1].set(xlabel="envelope radius [mm]", ylabel="height above bottom platen [mm]", title="bulging")
     ax[1, 1].legend()
-    s = test.summary()
+    s = summary
     fig.suptitle(
-        f"Drained triaxial, {test.n} particles, sigma_3 = {test.sigma3 / 1e3:g} kPa, lamp {test.cells_per_diameter:g} "
-        f"cells/d, I = {test.inertial_number:g}\npeak q/sigma_3 = {s['peak_q_over_sigma3']:.2f} (platens), "
-        f"phi_peak = {s['peak_friction_angle_deg']:.1f} deg (platens), "
-        f"{s['sphere_friction_angle_at_peak_deg']:.1f} deg (core)",
+        rf"Drained triaxial, {s['particles']:,} particles, $\sigma_3$ = {sigma3 / 1e3:g} kPa, lamp "
+        rf"{s['cells_per_diameter']:g} cells/d, $I$ = {s['inertial_number']:g}"
+        "\n"
+        rf"peak $q/\sigma_3$ = {s['peak_q_over_sigma3']:.2f} (platens), "
+        rf"$\varphi_\mathrm{{peak}}$ = {s['peak_friction_angle_deg']:.1f}° (platens), "
+        rf"{s['sphere_friction_angle_at_peak_deg']:.1f}° (core)",
         fontsize=10,
     )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--particles", type=int, default=None, help="particles (10,000; --quick: 2,000)")
     parser.add_argument("--cells-per-diameter", type=float, default=4, help="lamp cells per mean diameter")
@@ -715,8 +744,19 @@ def main():
     )
     parser.add_argument("--time", action="store_true", help="time a cycle with and without the lamp at the end")
     parser.add_argument("--json", default=None, help="write the summary and the samples as JSON")
-    parser.add_argument("--plot", default=None, help="draw the curves to this PNG")
-    args = parser.parse_args()
+    parser.add_argument("--plot", default=None, help="draw the curves to this PNG (needs the plot extra)")
+    parser.add_argument("--from-json", default=None, help="--plot: redraw a saved run (--json) instead of running")
+    args = parser.parse_args(argv)
+    if args.plot and importlib.util.find_spec("matplotlib") is None:
+        sys.exit("--plot needs matplotlib: pip install '.[plot]' in a clone, or pip install 'warp-lamp[plot]'")
+    if args.from_json:
+        if not args.plot:
+            sys.exit("--from-json redraws a saved run: add --plot PATH")
+        with open(args.from_json) as f:
+            saved = json.load(f)
+        plot_history(saved["summary"], saved, args.plot)
+        print(f"wrote {args.plot}")
+        return
     wp.config.log_level = wp.LOG_WARNING
     particles = args.particles or (2000 if args.quick else 10000)
     inertial = args.inertial_number or (5e-3 if args.quick else 5e-4)
@@ -757,6 +797,7 @@ def main():
             json.dump({"summary": summary, **test.history}, f, indent=1)
     if args.plot:
         plot(test, args.plot)
+        print(f"wrote {args.plot}")
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ __all__ = [
     "format_tables",
     "lattice_grid",
     "markdown_table",
+    "place_labels",
     "plot",
     "specimen_stress",
     "time_bvh",
@@ -364,6 +365,30 @@ def format_tables(result: dict) -> str:
     return "\n".join(lines)
 
 
+#: Where a point's label may go, in points from the point, in the order tried: upper right first.
+_LABEL_OFFSETS = ((4, 3), (4, -10), (-22, 3), (-22, -10), (4, 11), (-22, 11), (4, -18), (-22, -18), (12, -4))
+
+
+def place_labels(ax, labels) -> list:
+    """Annotate points so that no two labels overlap: each label (``(text, (x, y), fontsize)``, in data
+    coordinates) takes the first of :data:`_LABEL_OFFSETS` whose box meets no label placed before it (the last
+    one tried when all are taken). Returns the annotations."""
+    renderer = ax.figure.canvas.get_renderer()
+    placed, boxes = [], []
+    for text, xy, size in labels:
+        ann = None
+        for dx, dy in _LABEL_OFFSETS:
+            if ann is not None:
+                ann.remove()
+            ann = ax.annotate(text, xy, fontsize=size, xytext=(dx, dy), textcoords="offset points")
+            box = ann.get_window_extent(renderer)
+            if not any(box.overlaps(b) for b in boxes):
+                break
+        boxes.append(ann.get_window_extent(renderer))
+        placed.append(ann)
+    return placed
+
+
 def plot(result: dict, path: str) -> None:
     """Time per update against E_area, one panel per device (each times its own scene size), one curve per
     criterion; and, with the ``area`` section, a last panel of update time against the specimen's force error for
@@ -382,19 +407,17 @@ def plot(result: dict, path: str) -> None:
     area = bool(result.get("area"))
     fig, axes = plt.subplots(1, len(devices) + area, figsize=(4.6 * (len(devices) + area), 4.6), squeeze=False)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
+    labels = {ax: [] for ax in axes[0]}
     for ax, dev in zip(axes[0][: len(devices)], devices, strict=True):
         for crit, marker in ((1, "o"), (0, "s")):
             pts = [s for s in result["sweep"] if s["device"] == dev and s["criterion"] == crit]
             if not pts:
                 continue
-            err = [s["E_area"] for s in pts]
+            err = [100.0 * s["E_area"] for s in pts]
             t = [(s["replay_s"] or s["eager_s"]) * 1e3 for s in pts]
             label = "criterion 1 (centre ray)" if crit == 1 else "criterion 0 (overlap)"
             ax.loglog(err, t, marker + "-", label=label)
-            for s, x, y in zip(pts, err, t, strict=True):
-                ax.annotate(
-                    f"d/{s['cells_per_diameter']}", (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points"
-                )
+            labels[ax] += [(f"d/{s['cells_per_diameter']}", (x, y), 7) for s, x, y in zip(pts, err, t, strict=True)]
         n = next(s["n"] for s in result["sweep"] if s["device"] == dev)
         ax.set_title(f"{dev} ({result['devices'][dev]['name']}), {n:,} spheres", fontsize=9)
         for axis in (ax.xaxis, ax.yaxis):
@@ -403,7 +426,7 @@ def plot(result: dict, path: str) -> None:
             axis.set_minor_formatter(NullFormatter())
         ax.tick_params(labelsize=8)
         ax.grid(True, which="both", alpha=0.3)
-        ax.set_xlabel("E_area (lone-sphere force error, RMS)", fontsize=9)
+        ax.set_xlabel(r"$E_\mathrm{area}$ [%]: lone-sphere force error, RMS", fontsize=9)
         ax.legend(fontsize=8, loc="lower left")
         ax.margins(x=0.12, y=0.08)
     axes[0, 0].set_ylabel("full update of all six lamps [ms]", fontsize=9)
@@ -411,7 +434,7 @@ def plot(result: dict, path: str) -> None:
         from warp_lamp.bench_modes import plot_area
 
         ax = axes[0, -1]
-        plot_area(ax, result)
+        labels[ax] = plot_area(ax, result)
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
             axis.set_major_formatter(plain)
@@ -421,10 +444,12 @@ def plot(result: dict, path: str) -> None:
     fig.text(
         0.5,
         0.01,
-        "E_area: RMS over random sub-cell offsets and the six lamps of F / (P pi r^2) - 1, F the force one lamp puts "
-        "on a lone sphere; d/k: k cells per diameter",
+        r"$E_\mathrm{area}$: RMS over random sub-cell offsets and the six lamps of $F / (P \pi r^2) - 1$, $F$ the "
+        "force one lamp puts on a lone sphere; d/k: k cells per diameter; every error axis in per cent",
         ha="center",
         fontsize=7.5,
     )
     fig.tight_layout(rect=(0, 0.04, 1, 1))
+    for ax, items in labels.items():  # after the layout, which fixes where each point lands
+        place_labels(ax, items)
     fig.savefig(path, dpi=120)

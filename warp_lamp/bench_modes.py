@@ -1,13 +1,14 @@
 """``warp-lamp bench``'s sections for the lamp's modes: speed against error for each.
 
-- ``small_body`` (issue 11): the SphereTest specimen at 2, 4, 8, 16 cells per diameter, the default depth pass
-  against the v4 baseline (``split=0, order=False``) in the same run; the 1M and 8M lattice boxes on CUDA.
-- ``area`` (issue 15): per-particle force error against the exact visible areas
+- ``small_body``: the SphereTest specimen at 2, 4, 8, 16 cells per diameter, the default depth pass against the
+  previous release's one thread per sphere (``split=0, order=False``, kept as ``v4`` in the JSON) in the same
+  run; the 1M and 8M lattice boxes on CUDA.
+- ``area``: per-particle force error against the exact visible areas
   (:func:`~warp_lamp.reference.visible_area_reference`) on the specimen, criterion 1 against ``criterion="area"``
   (both resolvers, D = 3 and 4), each with its update time and its ratio to criterion 1 at 4 cells per diameter.
-- ``wetted`` (issue 10): ``surfaces="first"`` against ``"all"`` (rho = one mean radius): update time, loaded
+- ``wetted``: ``surfaces="first"`` against ``"all"`` (rho = one mean radius): update time, loaded
   particles, and the slot block's wall and floor load ratios.
-- ``frames`` (issue 12): direction error (the angle between a surface particle's force and the inward normal of
+- ``frames``: direction error (the angle between a surface particle's force and the inward normal of
   the body's envelope) of a jittered block, aligned, rotated under an axis-aligned lamp and rotated with its lamp,
   and of the SphereTest ball with frame averaging, each with its update time.
 
@@ -47,6 +48,8 @@ __all__ = [
     "block_rotation",
     "exact_areas",
     "format_modes",
+    "frames_block_case",
+    "frames_block_scene",
     "plot_area",
     "section_area",
     "section_frames",
@@ -184,9 +187,9 @@ def _step(bar, what):
         bar.step(what)
 
 
-# --- small bodies (issue 11) -----------------------------------------------------------------------------------
+# --- small bodies -----------------------------------------------------------------------------------------------
 
-#: The v4 baseline of issue 11: one thread per sphere, no work order.
+#: The previous release's depth pass: one thread per sphere, no work order (``v4`` in result files).
 V4 = {"split": 0, "order": False}
 
 
@@ -199,8 +202,8 @@ def section_small_body(
     large=(),
     bar: Progress | None = None,
 ) -> list[dict]:
-    """The default lamp against the v4 baseline, in one run on one device: eager update, graph replay and moving
-    body, and the speed-up v4 / default.
+    """The default lamp against the previous release's depth pass, in one run on one device: eager update, graph
+    replay and moving body, and the speed-up previous / default.
 
     Args:
         device: Warp device.
@@ -214,8 +217,8 @@ def section_small_body(
 
     Returns:
         One row per scene and grid: ``default`` and ``v4`` (timings of :func:`time_update`, with ``split`` and
-        ``order``), ``speedup`` (v4 time over the default's: eager, replay, moving) and ``same_counts`` (the two
-        paths' counts are bitwise equal, as they must be).
+        ``order``), ``speedup`` (the previous release's time over the default's: eager, replay, moving) and
+        ``same_counts`` (the two paths' counts are bitwise equal, as they must be).
     """
     device = wp.get_device(device)
     specimen = scene_sphere_specimen() if specimen is None else specimen
@@ -250,7 +253,7 @@ def section_small_body(
     return rows
 
 
-# --- the area criterion (issue 15) ------------------------------------------------------------------------------
+# --- the area criterion ------------------------------------------------------------------------------------------
 
 #: The area criterion's estimators in the section: (resolver, depth_slots).
 AREA_ESTIMATORS = (("subpoints", 3), ("subpoints", 4), ("exact", 3), ("exact", 4))
@@ -347,7 +350,7 @@ def section_area(
     return out
 
 
-# --- the wetted surface (issue 10) ------------------------------------------------------------------------------
+# --- the wetted surface ------------------------------------------------------------------------------------------
 
 
 def section_wetted(
@@ -368,7 +371,7 @@ def section_wetted(
         device: Warp device.
         repeats: Timed repeats per figure.
         specimen: The convex body (the SphereTest specimen by default).
-        slot: The slot block (issue 10's, :func:`~warp_lamp.scenes.scene_slot_block`, by default).
+        slot: The slot block (:func:`~warp_lamp.scenes.scene_slot_block`, by default).
         large: Lattice sizes per axis (the 1M box: 100), at cell 0.25 (with the margin grown by rho).
         cells_per_diameter: Resolution of the specimen and the slot block.
         bar: Progress bar, one step per row.
@@ -418,7 +421,7 @@ def section_wetted(
     return rows
 
 
-# --- lamp frames (issue 12) -------------------------------------------------------------------------------------
+# --- lamp frames -------------------------------------------------------------------------------------------------
 
 
 def section_frames(
@@ -452,12 +455,7 @@ def section_frames(
         zero, as they must in any frame and averaged over frames).
     """
     device = wp.get_device(device)
-    block = scene_lattice_box(block_size)
-    index = np.stack(np.unravel_index(np.arange(block.n), (block_size,) * 3), axis=1)
-    rot = block_rotation()
-    turned = Scene(
-        block.name + ", rotated", (block.centers - block.center) @ rot.T + block.center, block.radii, block.center
-    )
+    block, turned, index, rot = frames_block_scene(block_size)
     ball = scene_sphere_specimen() if ball is None else ball
     ball_select, ball_normals = ball_outer_normals(
         ball.centers, ball.center, ball.radius, BALL_DEPTH_RADII * float(ball.radii.mean())
@@ -488,6 +486,54 @@ def section_frames(
             rows.append(row)
             _step(bar, f"{device.alias} frames {name} K={n_frames} d/{k:g}")
     return rows
+
+
+def frames_block_scene(block_size: int = 20) -> tuple[Scene, Scene, np.ndarray, np.ndarray]:
+    """The frames section's block: :func:`~warp_lamp.scenes.scene_lattice_box` of ``block_size`` per axis (seed 0),
+    and the same block turned by :func:`block_rotation` about its centre.
+
+    Returns:
+        ``(block, turned, index, rotation)``: the two scenes, each particle's lattice index, shape (N, 3), and the
+        turn.
+    """
+    block = scene_lattice_box(block_size)
+    index = np.stack(np.unravel_index(np.arange(block.n), (block_size,) * 3), axis=1)
+    rot = block_rotation()
+    turned = Scene(
+        block.name + ", rotated", (block.centers - block.center) @ rot.T + block.center, block.radii, block.center
+    )
+    return block, turned, index, rot
+
+
+def frames_block_case(*, lamp_turned: bool, cells_per_diameter: float = 4, block_size: int = 20, device=None) -> dict:
+    """One row of the frames section's turned block, without the timing: the lamp axis-aligned or turned with the
+    block, its forces (world positions in float32, moved into the frame on the device, as the section times them)
+    and their direction error over the face interiors. ``examples/frames_block.py`` draws this.
+
+    Returns:
+        ``forces`` (N, 3) [N at P = 1 Pa], ``index`` (lattice index, (N, 3)), ``select`` and ``normals``
+        (:func:`~warp_lamp.measures.block_face_interior`), ``rotation``, and the keys of
+        :func:`~warp_lamp.measures.direction_error`.
+    """
+    device = wp.get_device(device)
+    _, turned, index, rot = frames_block_scene(block_size)
+    lamp_rot = rot if lamp_turned else None
+    grid = LampGrid.enclosing(turned.centers, turned.radii, cells_per_diameter=cells_per_diameter, rotation=lamp_rot)
+    lamp = ShiningLamp(grid, device=device)
+    lamp.update(
+        _positions(turned.centers, grid, device, False),
+        wp.array(turned.radii.astype(np.float32), dtype=wp.float32, device=device),
+    )
+    f = lamp.forces_numpy(P)
+    select, normals = block_face_interior(index, block_size, rotation=rot, edge=BLOCK_EDGE)
+    return {
+        "forces": f,
+        "index": index,
+        "select": select,
+        "normals": normals,
+        "rotation": rot,
+        **direction_error(f, normals, select),
+    }
 
 
 # --- driver and tables ------------------------------------------------------------------------------------------
@@ -545,8 +591,8 @@ def format_modes(result: dict) -> str:
     if result.get("small_body"):
         lines += [
             "",
-            "Small bodies (issue 11): default depth pass against the v4 baseline (split=0, order=False), same run; "
-            "update / replay / moving body [ms]; speed-up = v4 time / default time:",
+            "Small bodies: the depth pass against the previous release's one thread per sphere (split=0, order=False), "
+            "same run; update / replay / moving body [ms]; speed-up = previous release time / today's time:",
             "",
         ]
         rows = []
@@ -565,12 +611,22 @@ def format_modes(result: dict) -> str:
                     "yes" if r["same_counts"] else "**no**",
                 ]
             )
-        header = ["device", "scene", "grid", "cells", "split", "default ms", "v4 ms", "speed-up", "same counts"]
+        header = [
+            "device",
+            "scene",
+            "grid",
+            "cells",
+            "split",
+            "today ms",
+            "previous release ms",
+            "speed-up",
+            "same counts",
+        ]
         lines += markdown_table(header, rows)
     for sec in result.get("area") or []:
         lines += [
             "",
-            f"Area criterion (issue 15) on the {sec['scene']} ({sec['n']:,} spheres): per-particle force error "
+            f"Area criterion on the {sec['scene']} ({sec['n']:,} spheres): per-particle force error "
             "|F - F_exact| / (P pi rbar^2) against the exact visible areas (RMS over surface particles; worst "
             f"particle); update = graph replay on CUDA, eager on the CPU (exact reference: {sec['reference_s']:.2f} s "
             "NumPy):",
@@ -608,7 +664,7 @@ def format_modes(result: dict) -> str:
     if result.get("wetted"):
         lines += [
             "",
-            "Wetted surface (issue 10): first against all (rho = one mean radius), same grid; update and moving "
+            "Wetted surface: first against all (rho = one mean radius), same grid; update and moving "
             "body [ms]; loaded particles; slot block: walls (-y / +y) over P L D, floor over P L w:",
             "",
         ]
@@ -633,7 +689,7 @@ def format_modes(result: dict) -> str:
     if result.get("frames"):
         lines += [
             "",
-            "Lamp frames (issue 12): angle between each surface particle's force and the envelope's inward normal "
+            "Lamp frames: angle between each surface particle's force and the envelope's inward normal "
             f"(block: face interiors, {BLOCK_EDGE}+ sites from the edges, turned {BLOCK_ROTATION_DEG} deg about "
             f"x, y, z; ball: centres within {BALL_DEPTH_RADII:g} rbar of the envelope, radial direction):",
             "",
@@ -657,9 +713,12 @@ def format_modes(result: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_area(ax, result: dict) -> None:
+def plot_area(ax, result: dict) -> list:
     """Update time against the specimen's per-particle force error (the ``area`` section), on a matplotlib axes:
-    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager)."""
+    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager). Returns the point labels
+    (``(text, (x, y), fontsize)``) for :func:`warp_lamp.bench.place_labels`, which the caller places once the
+    figure's layout is fixed."""
+    labels = []
     colours = {}
     sections = result.get("area") or []
     # The benchmark writes a section per device; CPU curves are labelled only where no GPU ran (one legend entry
@@ -687,12 +746,10 @@ def plot_area(ax, result: dict) -> None:
                 label=name if cuda or not has_cuda else None,
             )
             if cuda or not has_cuda:
-                for r, x, y in zip(pts, err, t, strict=True):
-                    ax.annotate(
-                        f"d/{r['cells_per_diameter']:g}", (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points"
-                    )
+                labels += [(f"d/{r['cells_per_diameter']:g}", (x, y), 6) for r, x, y in zip(pts, err, t, strict=True)]
         ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres)", fontsize=9)
-    ax.set_xlabel("per-particle force RMS [%] vs exact visible areas")
-    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)")
+    ax.set_xlabel("per-particle force error [%], RMS, vs exact visible areas", fontsize=9)
+    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, loc="upper right")
+    return labels

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import time
+import warnings
 
 import numpy as np
 import warp as wp
@@ -15,9 +17,13 @@ from warp_lamp.scenes import scene_overlapping_box
 from warp_lamp.timing import Progress, run_header, time_median, time_median_events
 
 __all__ = [
+    "PAPER_CPU_SECONDS",
+    "PAPER_WALL_SECONDS_SHARED",
     "bench_porosity",
     "format_porosity",
     "paper_experiment",
+    "paper_note",
+    "paper_work",
     "plot_histograms",
 ]
 
@@ -62,8 +68,44 @@ def _time_overlap_peer(scene, lower, upper, shape, limit_s: float = 20.0):
     return {"overlap_s": per_pair * total_pairs, "overlap_pairs": total_pairs, "overlap_measured_pairs": pairs}
 
 
-def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, target: bool = False) -> dict:
-    """Time and error of every method against `exact`, per device; with ``target``, the 1 mm scene at 0.1 mm."""
+#: ``bench porosity --paper`` on the 2-core development machine, CPU only, packings cached: 77 s of CPU time,
+#: 4 min 37 s wall-clock while the machine was shared (a user's first trial took 3 min 57 s) [s].
+PAPER_CPU_SECONDS = 77
+PAPER_WALL_SECONDS_SHARED = 277
+
+
+def paper_note(*, quick: bool = False) -> str:
+    """What ``bench porosity --paper`` will take, said before it starts (one line, for stderr)."""
+    if quick:
+        return "warp-lamp: bench porosity --quick --paper takes about a minute on a CPU"
+    m, s = divmod(PAPER_WALL_SECONDS_SHARED, 60)
+    return (
+        f"warp-lamp: bench porosity --paper takes minutes on a CPU ({PAPER_CPU_SECONDS} s of CPU time on a 2-core "
+        f"machine, {m} min {s} s while it was shared; far less on a GPU), longer on the first run, which packs "
+        "its scenes (cached); the progress bar covers all of it"
+    )
+
+
+def _quiet_midpoint(fn):
+    """The benchmark measures the midpoint method's error at coarse subdivisions on purpose: its warning that the
+    radii round badly there is what the error column shows, so it is not repeated on stderr."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="subdivisions: with", category=RuntimeWarning)
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_quiet_midpoint
+def bench_porosity(
+    devices=None, *, quick: bool = False, progress: bool = True, target: bool = False, paper: bool = False
+) -> dict:
+    """Time and error of every method against `exact`, per device; with ``target``, the 1 mm scene at 0.1 mm;
+    with ``paper``, the paper's experiment (:func:`paper_experiment`, on the last device) under the same progress
+    bar, in the result's ``paper``."""
     devices = [wp.get_device(d) for d in (devices or ["cpu"] + [d.alias for d in wp.get_cuda_devices()])]
     scene, lower, upper, shape = _error_scene(quick)
     subs = (2, 4, 8) if quick else SUBDIVISIONS
@@ -76,7 +118,8 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
     }
     args = (scene.centers, scene.radii, lower, upper, shape)
     exact = porosity(*args, method="exact", device=devices[0])
-    bar = Progress(len(devices) * (3 + 2 * len(subs)), "bench porosity", enabled=progress)
+    paper_steps = paper_work(quick=quick) if paper else 0
+    bar = Progress(len(devices) * (3 + 2 * len(subs)) + 1 + paper_steps, "bench porosity", enabled=progress)
     for device in devices:
         reps = 3 if not device.is_cuda else 10
         for method in POROSITY_METHODS:
@@ -98,8 +141,8 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
                     }
                 )
                 bar.step(f"{device.alias} {method} {s}")
-    bar.close()
     result["peers"] = {"overlap": _time_overlap_peer(scene, lower, upper, shape)}
+    bar.step("peer overlap")
     result["peers"]["porespy"] = (
         "installed, not timed: its spheres_from_coords rounds centres to voxels"
         if importlib.util.find_spec("porespy")
@@ -107,11 +150,14 @@ def bench_porosity(devices=None, *, quick: bool = False, progress: bool = True, 
     )
     if target:
         result["target"] = time_target(devices)
+    if paper:
+        result["paper"] = paper_experiment(devices[-1], quick=quick, bar=bar)
+    bar.close()
     return result
 
 
 def time_target(devices) -> list:
-    """The issue's target: r = 1 mm box (about 300k spheres), 10 x 10 x 20 cells, 0.1 mm sub-cells (s = 100)."""
+    """The speed target: r = 1 mm box (about 300k spheres), 10 x 10 x 20 cells, 0.1 mm sub-cells (s = 100)."""
     scene = scene_overlapping_box(0.001, device=devices[-1])
     out = []
     for device in devices:
@@ -182,17 +228,33 @@ def table_1(samples: int = 64, seed: int = 0) -> list:
     return rows
 
 
-def paper_experiment(device=None, *, radii=(0.001, 0.0025, 0.005), subdivisions: int = 100, quick: bool = False):
+PAPER_RADII = (0.001, 0.0025, 0.005)
+
+
+def paper_work(*, quick: bool = False, radii=PAPER_RADII) -> int:
+    """Progress steps of :func:`paper_experiment`: one per scene and method, and Table 1."""
+    return len(_paper_radii(quick, radii)) * (1 + len(POROSITY_METHODS)) + 1
+
+
+def _paper_radii(quick: bool, radii) -> tuple:
+    # Quick: a 4 cm cube, room for a few 2.5 mm spheres across, none for 5 mm at this density.
+    return tuple(r for r in radii if r <= 0.0025) if quick else tuple(radii)
+
+
+def paper_experiment(
+    device=None, *, radii=PAPER_RADII, subdivisions: int = 100, quick: bool = False, bar: Progress | None = None
+):
     """Section 3.2: a 10 x 10 x 20 cm box on a 10 x 10 x 20 grid, filled densely with overlapping spheres of each
-    radius; porosity by every method; near-zero fractions and Kozeny-Carman ranges."""
-    if quick:  # a 4 cm cube: room for a few 2.5 mm spheres across, none for 5 mm at this density
-        size, radii = np.array([0.04, 0.04, 0.04]), tuple(r for r in radii if r <= 0.0025)
-    else:
-        size = np.array([0.1, 0.1, 0.2])
+    radius; porosity by every method; near-zero fractions and Kozeny-Carman ranges. ``bar`` advances by
+    :func:`paper_work` steps."""
+    radii = _paper_radii(quick, radii)
+    size = np.array([0.04, 0.04, 0.04]) if quick else np.array([0.1, 0.1, 0.2])
     shape = tuple(round(float(x) / 0.01) for x in size)
     out = {"shape": list(shape), "size_m": size.tolist(), "subdivisions": subdivisions, "cases": []}
     for r in radii:
         scene = scene_overlapping_box(r, tuple(size), device=device)
+        if bar is not None:
+            bar.step(f"paper r = {r * 1e3:g} mm packing")
         case = {
             "radius": r,
             "n": scene.n,
@@ -219,8 +281,12 @@ def paper_experiment(device=None, *, radii=(0.001, 0.0025, 0.005), subdivisions:
                 "kc_max": float(k.max()),
                 "kc_undefined_cells": int((~ok).sum()),
             }
+            if bar is not None:
+                bar.step(f"paper r = {r * 1e3:g} mm {method}")
         out["cases"].append(case)
     out["table_1"] = table_1()
+    if bar is not None:
+        bar.step("paper Table 1")
     return out
 
 

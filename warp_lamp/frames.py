@@ -3,13 +3,15 @@ the fixed set of orientations that frame averaging uses."""
 
 from __future__ import annotations
 
+import sys
 import warnings
 
 import numpy as np
 
-from warp_lamp.validate import check_force_range, check_pressure, lamp_rotation
+from warp_lamp.validate import check_force_range, check_pressure, format_value, lamp_rotation, user_stacklevel
 
 __all__ = [
+    "check_pressure_signs",
     "lamp_force_factors",
     "lamp_frame_rotations",
     "lamp_pressure",
@@ -97,7 +99,7 @@ def _check_tensor(sigma) -> np.ndarray:
         raise ValueError(f"pressure: a stress tensor must be 3 x 3, got shape {s.shape}")
     if not np.isfinite(s).all():
         k = int(np.flatnonzero(~np.isfinite(s).ravel())[0])
-        raise ValueError(f"pressure: stress tensor must be finite; flat index {k} is {s.ravel()[k]!r}")
+        raise ValueError(f"pressure: stress tensor must be finite; flat index {k} is {format_value(s.ravel()[k])}")
     scale = float(np.abs(s).max())
     asym = float(np.abs(s - s.T).max())
     if asym > 1e-12 * scale:
@@ -108,27 +110,25 @@ def _check_tensor(sigma) -> np.ndarray:
 def lamp_pressure(pressure, rotation=None) -> tuple[np.ndarray, np.ndarray | None]:
     """The pressure per lamp axis [Pa] in a lamp frame, from a number, three numbers, or a stress tensor.
 
-    A stress tensor (3 x 3, symmetric, compression positive) must be diagonal in the lamp frame ``rotation`` to
-    within 1e-9 of its largest entry: the lamp pushes along its three axes only, so the shear of a tensor in
-    another frame cannot be applied, and is refused rather than dropped. Without a ``rotation`` (None), the
-    tensor's principal frame (:func:`lamp_stress_frame`) is returned as the frame to use.
-
-    A tensor with no normal component in the frame (zero trace: pure shear) has nothing for a pressure boundary to
-    apply and is refused; a principal value below zero (tension) is applied as a pull, with a warning.
+    A stress tensor (3 x 3, symmetric, compression positive) is applied through its principal values, which
+    become the three lamp pressures: the same numbers given per axis get the same forces, the same checks and the
+    same warning (:func:`check_pressure_signs`). A tensor must be diagonal in the lamp frame ``rotation`` to within
+    1e-9 of its largest entry: the lamp pushes along its three axes only, so the shear of a tensor in another frame
+    cannot be applied, and is refused rather than dropped. Without a ``rotation`` (None), the tensor's principal
+    frame (:func:`lamp_stress_frame`) is returned as the frame to use. A pure shear (trace 0, off-diagonal only)
+    is, in its principal frame, a push along one diagonal and a pull along the other: it is applied as such, with
+    the warning for mixed signs.
 
     Returns:
         (p, frame): the pressures along the lamp axes, and the frame chosen for a tensor when ``rotation`` is None
         (else None).
     """
     if np.ndim(pressure) != 2:
-        return check_pressure(pressure), None
+        p = check_pressure(pressure)
+        check_pressure_signs(p)
+        return p, None
     s = _check_tensor(pressure)
     scale = float(np.abs(s).max())
-    if scale > 0 and abs(np.trace(s)) <= 1e-12 * scale:
-        raise ValueError(
-            "pressure: the stress tensor is pure shear (trace 0): a pressure boundary applies normal pressure "
-            "only, and has nothing to apply here"
-        )
     frame = None
     if rotation is None:
         frame, _ = lamp_stress_frame(s)
@@ -140,15 +140,39 @@ def lamp_pressure(pressure, rotation=None) -> tuple[np.ndarray, np.ndarray | Non
     if off > 1e-9 * max(scale, np.finfo(float).tiny):
         raise ValueError(
             f"pressure: the stress tensor is not diagonal in the lamp frame (shear {off:.4g} Pa there): build the "
-            "grid with rotation=warp_lamp.lamp_stress_frame(sigma)[0], or pass the tensor without a grid"
+            "grid with rotation=warp_lamp.frames.lamp_stress_frame(sigma)[0], or pass the tensor without a grid"
         )
     p = np.diag(local).copy()
-    if (p < 0).any():
-        warnings.warn(
-            f"pressure: principal value(s) {p[p < 0].tolist()} Pa are tension: the lamp pulls there",
-            stacklevel=3,
-        )
+    # Rounding of the frame leaves principal values of a pure shear's null axis at about 1e-16 of the scale.
+    p[np.abs(p) <= 1e-12 * scale] = 0.0
+    check_pressure_signs(p)
     return p, frame
+
+
+#: (pressures, file, line) already warned about by :func:`check_pressure_signs`: one call of the library checks
+#: the same pressure more than once, and Warp's launches reset Python's own once-per-line record.
+_SIGNS_WARNED: set = set()
+
+
+def check_pressure_signs(p) -> None:
+    """The one rule on the signs of the three lamp pressures, however they were given (one number, three, or a
+    stress tensor's principal values): compression (> 0) pushes, tension (< 0) pulls, and any mix is applied as
+    given; a mix of signs warns (UserWarning, once per value and line of the caller), since a fluid cannot push
+    on some faces and pull on others: it is most often a tensor written with tension positive, or one sign slip.
+    All of one sign (uniform suction included) is silent."""
+    p = np.asarray(p, dtype=np.float64)
+    if (p > 0).any() and (p < 0).any():
+        level = user_stacklevel()
+        caller = sys._getframe(level - 1)
+        key = (tuple(p.tolist()), caller.f_code.co_filename, caller.f_lineno)
+        if key in _SIGNS_WARNED:
+            return
+        _SIGNS_WARNED.add(key)
+        warnings.warn(
+            f"pressure: the lamp pressures (principal values) {[float(x) for x in p]} Pa mix compression (> 0, "
+            "pushes) and tension (< 0, the lamp pulls there); compression is positive in warp_lamp",
+            stacklevel=level,
+        )
 
 
 def _halton(index: int, base: int) -> float:
@@ -168,7 +192,7 @@ def lamp_frame_rotations(frames: int) -> np.ndarray:
     the first K of a larger set are the smaller set.
     """
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1:
-        raise ValueError(f"frames: expected an integer >= 1, got {frames!r}")
+        raise ValueError(f"frames: expected an integer >= 1, got {format_value(frames)}")
     out = [np.eye(3)]
     for k in range(1, int(frames)):
         u1, u2, u3 = _halton(k, 2), _halton(k, 3), _halton(k, 5)

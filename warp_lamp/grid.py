@@ -13,7 +13,9 @@ from warp_lamp.validate import (
     check_particles,
     check_positive,
     check_vec3,
+    format_value,
     lamp_rotation,
+    unit_mixup_hint,
 )
 
 __all__ = ["BYTES_PER_CELL", "LampGrid", "LampGridSpec"]
@@ -81,11 +83,11 @@ class LampGrid:
                 raise ValueError(f"{name}: expected shape (3, 2), got {arr.shape}")
             if not np.isfinite(arr).all():
                 k = int(np.flatnonzero(~np.isfinite(arr).ravel())[0])
-                raise ValueError(f"{name}: must be finite; flat index {k} is {arr.ravel()[k]!r}")
+                raise ValueError(f"{name}: must be finite; flat index {k} is {format_value(arr.ravel()[k])}")
         for name, arr in (("lengths", lengths), ("counts", counts_f)):
             if np.any(arr <= 0):
                 k = int(np.flatnonzero((arr <= 0).ravel())[0])
-                raise ValueError(f"{name}: must be > 0; flat index {k} is {arr.ravel()[k]!r}")
+                raise ValueError(f"{name}: must be > 0; flat index {k} is {format_value(arr.ravel()[k])}")
         if np.any(counts_f != np.round(counts_f)):
             raise ValueError("counts: must be integers")
         check_grid_cells("counts", counts_f, max_bytes, BYTES_PER_CELL)
@@ -137,9 +139,16 @@ class LampGrid:
         # can bring an extreme onto an edge.
         with np.errstate(over="ignore", divide="ignore"):
             n = np.floor((hi - lo) / h) + 1.0
-        check_grid_cells(
-            "cells_per_diameter", [[n[(a + 1) % 3], n[(a + 2) % 3]] for a in range(3)], max_bytes, BYTES_PER_CELL
-        )
+        try:
+            check_grid_cells(
+                "cells_per_diameter", [[n[(a + 1) % 3], n[(a + 2) % 3]] for a in range(3)], max_bytes, BYTES_PER_CELL
+            )
+        except ValueError as e:
+            # A grid far over the budget is, more often than not, centres and radii in different units.
+            hint = unit_mixup_hint(centers, radii)
+            if hint:
+                raise ValueError(f"{e}; {hint}") from None
+            raise
         lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
         return cls(lower, lower + n * h, h, rotation=rotation, max_bytes=max_bytes)
 

@@ -73,7 +73,7 @@ def stress_summary(sigma: np.ndarray, pressure: float) -> dict:
     }
 
 
-# --- direction error (issue 12) ----------------------------------------------------------------------------
+# --- direction error ----------------------------------------------------------------------------------------
 
 
 def direction_error(forces, normals, select=None) -> dict:
@@ -181,7 +181,7 @@ def ball_outer_normals(centers, center, radius: float, depth: float) -> tuple[np
     return (dist > radius - depth) & nz, normals
 
 
-# --- force error against the exact visible areas (issue 15) -------------------------------------------------
+# --- force error against the exact visible areas -------------------------------------------------------------
 
 
 def visible_area_error(forces, exact_areas, pressure: float, mean_radius: float) -> dict:
@@ -198,7 +198,7 @@ def visible_area_error(forces, exact_areas, pressure: float, mean_radius: float)
         mean_radius: rbar [m].
 
     Returns:
-        ``rms``: RMS over the surface particles (those with any exact visible area; issue 15's table),
+        ``rms``: RMS over the surface particles (those with any exact visible area; the README's table),
         ``rms_all``: RMS over all particles, ``worst``: the largest error and ``worst_particle`` its index,
         ``surface``: the number of surface particles.
     """
@@ -225,11 +225,11 @@ def visible_area_error(forces, exact_areas, pressure: float, mean_radius: float)
     }
 
 
-# --- slot block load ratios (issue 10) ----------------------------------------------------------------------
+# --- slot block load ratios ----------------------------------------------------------------------------------
 
 
 def slot_load_ratios(scene, forces, pressure: float) -> dict:
-    """Wall and floor load ratios of issue 10's slot block (:func:`warp_lamp.scenes.scene_slot_block`).
+    """Wall and floor load ratios of the slot block (:func:`warp_lamp.scenes.scene_slot_block`).
 
     - Walls: the lateral force pushing into each wall, summed over the lattice column next to the slot
       (iy = ``wall_lo`` pushed toward -y, iy = ``wall_hi`` toward +y) over the slot's depth (iz >= ``k0``), over

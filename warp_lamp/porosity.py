@@ -18,10 +18,13 @@ from warp_lamp.validate import (
     check_shape,
     check_subdivisions,
     format_bytes,
+    format_value,
+    resolve_device,
 )
 
 __all__ = [
     "MIDPOINT_MAX_RADIUS",
+    "MIDPOINT_VOLUME_FACTOR",
     "POROSITY_METHODS",
     "count_bitmap",
     "kozeny_carman",
@@ -156,6 +159,45 @@ def midpoint_choice(radii_sub: np.ndarray, n_subcells: int) -> int:
     return 2 if np.sum(4.0 / 3.0 * np.pi * r**3) > 8.0 * float(n_subcells) * float(r.max()) ** 3 else 1
 
 
+#: How far (a factor, either way) the midpoint method's whole-sub-cell radii may take the spheres' volume from
+#: their true volume before :func:`porosity` warns.
+MIDPOINT_VOLUME_FACTOR = 2.0
+
+
+def _midpoint_volume(rounded: np.ndarray) -> np.ndarray:
+    """Sub-cells the midpoint method marks for a sphere of whole radius R (its Table 1: 1 for R = 1, then within
+    a few per cent of 4/3 pi R^3 from R = 2 on), in sub-cell volumes."""
+    return np.where(rounded <= 1.0, 1.0, 4.0 / 3.0 * np.pi * rounded**3)
+
+
+def _warn_midpoint_rounding(local, radii, hs, sub, s) -> None:
+    """Warn, naming ``subdivisions``, when rounding the radii to whole sub-cells moves the spheres' volume by more
+    than :data:`MIDPOINT_VOLUME_FACTOR` (spheres much smaller than a sub-cell become one whole sub-cell)."""
+    if len(radii) == 0:
+        return
+    mc, mr = _midpoint_spheres(local, radii, hs)
+    reach = np.all(mc + mr[:, None] >= 0, axis=1) & np.all(mc - mr[:, None] <= np.asarray(sub) - 1, axis=1)
+    if not reach.any():
+        return
+    h = float(np.min(hs))
+    true_r = radii[reach] / h
+    factor = float(np.sum(_midpoint_volume(mr[reach])) / np.sum(4.0 / 3.0 * np.pi * true_r**3))
+    if 1.0 / MIDPOINT_VOLUME_FACTOR <= factor <= MIDPOINT_VOLUME_FACTOR:
+        return
+    median = float(np.median(true_r))
+    # Five sub-cells of radius keep the midpoint sphere within about 1% of its volume (Table 1).
+    need = int(np.ceil(5.0 / median * min(s)))
+    how = f"{factor:,.0f} times" if factor > 1 else f"{factor:.2f} of"
+    unit = "sub-cell" if median == 1 else "sub-cells"
+    warnings.warn(
+        f"subdivisions: with {format_value(tuple(s))} sub-cells per cell the spheres are {median:.3g} {unit} in "
+        f"radius (median); the midpoint method rounds radii to whole sub-cells (at least 1), which gives them {how} "
+        f"their true volume; use subdivisions >= {need:,} (5 sub-cells per radius), or method='voxel' or 'exact'",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+
+
 def _warn_outside(c, r, lo, hi) -> None:
     """Warn when the spheres cannot be meant for this box: none reaches it, or they fill under 1e-9 of it."""
     if len(r) == 0:
@@ -249,16 +291,16 @@ def porosity(
     Returns:
         Porosity, shape ``shape``, float64, indexed [i, j, k] along x, y, z.
     """
-    device = check_device_match(device, centers=centers, radii=radii)
+    device = check_device_match(device, centers=centers, radii=radii)  # a missing GPU: one line, naming device
     c, r = check_particles(centers, radii)
     lo, hi = check_box(lower, upper)
     shape = check_shape(shape)
     if not isinstance(method, str) or method not in POROSITY_METHODS:
-        raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
+        raise ValueError(f"method: unknown {format_value(method)}; expected one of {sorted(POROSITY_METHODS)}")
     per_axis = not isinstance(subdivisions, (int, np.integer))
     s = _subdivisions(subdivisions)
     if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
-        raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
+        raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {format_value(midpoint_algorithm)}")
     max_bytes = check_max_bytes(max_bytes)
     h = (hi - lo) / np.asarray(shape)
     if method == "midpoint":
@@ -279,6 +321,8 @@ def porosity(
             raise ValueError(f"subdivisions: {s} on shape {shape} gives {sub} sub-cells, over the int32 indices")
     _warn_outside(c, r, lo, hi)
     local = c - lo  # float64, so that a box far from the origin loses nothing
+    if method == "midpoint":
+        _warn_midpoint_rounding(local, r, h / np.asarray(s), sub, s)
     if POROSITY_METHODS[method] == "sum":
         solid = _porosity_sum(method, local, r, h, shape, device)
         return 1.0 - solid / float(np.prod(h))
@@ -324,7 +368,7 @@ def porosity_mark_union(method, local, radii, hs, sub, device, *, algorithm=None
     Returns:
         The bitmap, uint32 words: word w of row (j, k) holds sub-cells 32 w ... 32 w + 31 along x.
     """
-    device = wp.get_device(device)
+    device = resolve_device(device)
     words = (sub[0] + 31) // 32
     if bits is None:
         bits = wp.zeros(words * sub[1] * sub[2], dtype=wp.uint32, device=device)
@@ -399,19 +443,36 @@ def kozeny_carman(porosity, particle_radius) -> np.ndarray:
 
     Args:
         porosity: Porosity e, any shape; every value must be in (0, 1].
-        particle_radius: Particle radius r [m], a number or an array broadcastable to ``porosity``.
+        particle_radius: The particle radius r of each cell [m]: one number (the mean radius, as the paper uses),
+            or an array of ``porosity``'s shape (or one that broadcasts to it), e.g. a per-cell mean radius. Not
+            one radius per particle: average them first.
 
     Raises:
         ValueError: for porosity <= 0 (the solve the paper describes overflows there), NaN, or above 1, naming
-            the first bad index; for a radius <= 0.
+            the first bad index; for a radius <= 0, or a radius array that does not match ``porosity``.
     """
     e = np.asarray(porosity, dtype=np.float64)
-    r = np.asarray(particle_radius, dtype=np.float64)
+    try:
+        r = np.asarray(particle_radius, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"particle_radius: expected a number or an array of numbers ({err})") from None
     bad = ~(e > 0) | (e > 1)
     if bad.any():
         k = np.unravel_index(int(np.flatnonzero(bad)[0]), e.shape) if e.ndim else ()
-        raise ValueError(f"porosity: must be in (0, 1]; index {tuple(int(x) for x in k)} is {e[k]!r}")
+        raise ValueError(f"porosity: must be in (0, 1]; index {tuple(int(x) for x in k)} is {format_value(e[k])}")
+    try:
+        shape = np.broadcast_shapes(e.shape, r.shape)
+    except ValueError:
+        shape = None
+    if shape != e.shape:
+        raise ValueError(
+            f"particle_radius: shape {r.shape} does not match the porosity's {e.shape}; give one number (the mean "
+            "particle radius) or one radius per cell, not one per particle (average them first: "
+            "particle_radius=radii.mean())"
+        )
     if not (np.isfinite(r) & (r > 0)).all():
-        raise ValueError(f"particle_radius: must be finite and > 0, got {particle_radius!r}")
+        k = int(np.flatnonzero(~(np.isfinite(r) & (r > 0)).ravel())[0]) if r.ndim else 0
+        where = f"; flat index {k} is {format_value(r.ravel()[k])}" if r.ndim else f", got {format_value(r[()])}"
+        raise ValueError(f"particle_radius: must be finite and > 0{where}")
     e = np.minimum(e, 0.7)
     return e**3 / (1.0 - e) ** 2 * (2.0 * r) ** 2 / 180.0

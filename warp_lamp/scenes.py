@@ -23,6 +23,8 @@ __all__ = [
     "scene_slot_block",
     "scene_sphere_specimen",
     "scene_tunnel_block",
+    "specimen_cached",
+    "specimen_porosity_floor",
 ]
 
 #: Bump when the packing algorithm changes, so that cached specimens are rebuilt.
@@ -120,11 +122,15 @@ def _device_kind(device) -> str:
     return "cuda" if wp.get_device(device).is_cuda else "cpu"
 
 
+def _cache_path(kind: str, params: dict) -> Path:
+    key = hashlib.sha1(json.dumps({**params, "v": _PACKING_VERSION}, sort_keys=True).encode()).hexdigest()[:16]
+    return _cache_dir() / f"{kind}-{key}.npz"
+
+
 def _cached_packing(kind: str, params: dict, build, *, cache: bool) -> tuple[np.ndarray, np.ndarray]:
     """(centres, radii) of a packing: read from the disk cache, keyed by ``kind`` and ``params``, or made by
     ``build()`` and written there atomically (so that concurrent processes never read half a file)."""
-    key = hashlib.sha1(json.dumps({**params, "v": _PACKING_VERSION}, sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_dir() / f"{kind}-{key}.npz"
+    path = _cache_path(kind, params)
     if cache and path.exists():
         data = np.load(path)
         return data["centers"], data["radii"]
@@ -137,12 +143,52 @@ def _cached_packing(kind: str, params: dict, build, *, cache: bool) -> tuple[np.
     return centers, radii
 
 
+#: The memo's specimen porosity, reached from 20 particle diameters across.
+SPECIMEN_POROSITY = 0.39
+#: Bodies narrower than this many particle diameters hold a few dozen particles, whose packing is luck.
+SPECIMEN_MIN_DIAMETERS = 5.0
+
+
+def specimen_porosity_floor(diameters: float) -> float:
+    """The densest envelope porosity the specimen generator reaches in a ball ``diameters`` mean particle
+    diameters across: particles against the curved wall pack loosely, so the envelope holds less solid the
+    smaller the ball. A fit to the bulk porosity 0.36 times the wall layer's loss, 1 - 0.64 (1 - 0.33 d/D)^3,
+    measured (two seeds each, 4000 steps) at 3, 4, 6, 8, 10, 12, 14, 17 and 20 diameters across to within 0.01:
+    0.55 at 3, 0.42 at 10, 0.40 at 14, 0.39 at 20. With 0.01 added (the default of :func:`scene_sphere_specimen`
+    below 20 across), three seeds relaxed at every whole number of diameters from 5 to 19."""
+    return 1.0 - 0.64 * (1.0 - 0.33 / float(diameters)) ** 3
+
+
+def _specimen_porosity(porosity, diameter: float, particle_diameter: float) -> float:
+    """The porosity to pack at: the memo's 0.39 where it is reachable (from 20 diameters across), else the densest
+    reachable plus 0.01; a porosity asked for that cannot be reached is refused at once, with the reason."""
+    x = diameter / particle_diameter
+    if not x >= SPECIMEN_MIN_DIAMETERS:
+        raise ValueError(
+            f"diameter: a body of {diameter:g} m is {x:.3g} particle diameters ({particle_diameter:g} m) across, under "
+            f"the {SPECIMEN_MIN_DIAMETERS:g} a packing needs; make it larger or the particles smaller"
+        )
+    floor = specimen_porosity_floor(x)
+    if porosity is None:
+        return SPECIMEN_POROSITY if x >= 20.0 else round(floor + 0.01, 3)
+    if isinstance(porosity, bool) or not isinstance(porosity, (int, float, np.floating)) or not 0.0 < porosity < 1.0:
+        raise ValueError(f"porosity: expected a number in (0, 1), got {porosity!r}")
+    if porosity < floor - 0.005:
+        raise ValueError(
+            f"porosity: {float(porosity):g} cannot be reached in a body {x:.3g} particle diameters across: the "
+            f"particles against its curved wall pack loosely, and the densest this generator reaches there is about "
+            f"{floor:.3f} ({SPECIMEN_POROSITY} from 20 diameters across); leave porosity=None for the densest "
+            "reachable, ask for more, or make the body larger against its particles"
+        )
+    return float(porosity)
+
+
 def scene_sphere_specimen(
     diameter: float = 0.1,
     particle_diameter: float = 0.005,
     *,
     ratio: float = 1.66,
-    porosity: float = 0.39,
+    porosity: float | None = None,
     seed: int = 0,
     device=None,
     cache: bool = True,
@@ -153,30 +199,57 @@ def scene_sphere_specimen(
     fill the body at ``porosity`` (against the envelope sphere), placed at random inside it at 80% of their size,
     then grown to full size by overlap relaxation on a ``wp.HashGrid`` (Jacobi steps with momentum, each
     particle moving by half of every overlap, the container pushing back) until no overlap exceeds 1% of the
-    smaller radius. Porosity 0.39 relaxes in about 1400 steps (seconds on one CPU core); much below 0.38 the
-    packing jams before its overlaps fall under 1%.
+    smaller radius. Porosity 0.39 relaxes in about 1400 steps (seconds on one CPU core) in the memo's body, 20
+    particle diameters across. Smaller bodies cannot be packed as densely (the particles against the curved wall
+    pack loosely: :func:`specimen_porosity_floor`), so by default they get the densest porosity the generator
+    reaches at their size, and a porosity below it is refused at once rather than after a long relaxation.
     The result is cached under ``$WARP_LAMP_CACHE`` (default ``~/.cache/warp_lamp``), keyed by the parameters.
 
     Args:
-        diameter: Body diameter [m].
+        diameter: Body diameter [m], at least 5 particle diameters.
         particle_diameter: Mean particle diameter [m].
         ratio: Rmax / Rmin.
-        porosity: Target porosity of the envelope sphere.
+        porosity: Target porosity of the envelope sphere; None: 0.39 (the memo's) from 20 particle diameters
+            across, else the densest reachable plus 0.01 (0.41 at 14 across, 0.46 at 6).
         seed: Random seed.
         device: Warp device for the relaxation: the CPU by default (a few seconds), so that the specimen is the same
             on every machine; a GPU relaxes it faster but rounds differently (contracted multiply-adds, the order
             of atomic sums), so its packing differs in the last digits of what is measured on it.
         cache: Read and write the on-disk cache (keyed by the parameters and the device kind).
+
+    Raises:
+        ValueError: a body under 5 particle diameters across, or a porosity it cannot reach, at once.
     """
+    diameter = float(diameter)
+    particle_diameter = float(particle_diameter)
+    porosity = _specimen_porosity(porosity, diameter, particle_diameter)
     device = "cpu" if device is None else device
     R = diameter / 2.0
+    params = dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed, on=_device_kind(device))
     centers, radii = _cached_packing(
         "specimen",
-        dict(d=diameter, pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed, on=_device_kind(device)),
+        params,
         lambda: _relax_packing(R, particle_diameter / 2.0, ratio, porosity, seed, device),
         cache=cache,
     )
     return Scene("sphere specimen", centers, radii, np.zeros(3), R)
+
+
+def specimen_cached(**kwargs) -> bool:
+    """Whether :func:`scene_sphere_specimen` with these arguments would load from the disk cache (no packing)."""
+    diameter = float(kwargs.get("diameter", 0.1))
+    particle_diameter = float(kwargs.get("particle_diameter", 0.005))
+    porosity = _specimen_porosity(kwargs.get("porosity"), diameter, particle_diameter)
+    on = _device_kind("cpu" if kwargs.get("device") is None else kwargs["device"])
+    params = dict(
+        d=diameter,
+        pd=particle_diameter,
+        ratio=kwargs.get("ratio", 1.66),
+        phi=porosity,
+        seed=kwargs.get("seed", 0),
+        on=on,
+    )
+    return _cache_path("specimen", params).exists()
 
 
 MOMENTUM = 0.8
@@ -420,7 +493,7 @@ def scene_slot_block(
     depth: int = 8,
     **lattice,
 ) -> CutScene:
-    """Issue 10's slot block: a jittered cubic block with a slot cut along x into its top face.
+    """The slot block of the wetted-surface checks: a jittered cubic block with a slot cut along x into its top face.
 
     The slot removes the ``width`` middle columns in y (iy in [j0, j0 + width)) of the top ``depth`` layers in z,
     over the whole length in x. ``cut`` holds ``length`` L, ``width`` w, ``depth`` D (in lattice spacings times

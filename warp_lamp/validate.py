@@ -35,10 +35,14 @@ __all__ = [
     "check_vec3",
     "check_warp_array",
     "format_bytes",
+    "format_value",
     "host_array",
     "lamp_mask",
     "lamp_names",
     "lamp_rotation",
+    "resolve_device",
+    "unit_mixup_hint",
+    "user_stacklevel",
 ]
 
 #: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
@@ -67,6 +71,96 @@ def format_bytes(n: float) -> str:
     elif n >= 1 << 30:
         text += f" ({n / (1 << 30):.3g} GiB)"
     return text
+
+
+def format_value(value) -> str:
+    """``value`` for a message, as Python writes it: NumPy scalars and arrays as plain numbers and lists
+    (``-0.012``, not ``np.float64(-0.012)``)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    elif isinstance(value, np.ndarray):
+        value = value.tolist()
+    return repr(value)
+
+
+def resolve_device(device=None, *, name: str = "device"):
+    """The Warp device ``device`` names (None: Warp's default), or one clear error naming ``name``.
+
+    A CUDA name on a machine without a GPU that Warp can use is refused here, before Warp is asked for it (Warp
+    itself prints two raw driver errors first); so is a CUDA ordinal past the GPUs present.
+
+    Args:
+        device: None, a ``warp.Device``, or a name such as ``"cpu"``, ``"cuda"``, ``"cuda:1"``.
+        name: The argument to name in the error.
+
+    Raises:
+        ValueError: no such device on this machine, saying which exist.
+        TypeError: neither a device nor a name.
+    """
+    import warp as wp
+
+    if device is None:
+        return wp.get_device(None)
+    if isinstance(device, wp.Device):
+        return device
+    if not isinstance(device, str):
+        raise TypeError(f"{name}: expected a Warp device or its name ('cpu', 'cuda:0'), got {type(device).__name__}")
+    alias = device.strip()
+    if alias.startswith("cuda"):
+        count = wp.get_cuda_device_count()
+        if count == 0:
+            raise ValueError(
+                f"{name}: {device!r} asks for a CUDA GPU, but this machine has none that Warp can use; use "
+                "device='cpu' (or leave device=None)"
+            )
+        ordinal = alias[5:] if alias.startswith("cuda:") else None
+        if alias != "cuda" and (ordinal is None or not ordinal.isdigit() or int(ordinal) >= count):
+            present = ", ".join(["cpu", *(f"cuda:{k}" for k in range(count))])
+            raise ValueError(f"{name}: no Warp device {device!r}; present: {present}")
+    try:
+        return wp.get_device(alias)
+    except (ValueError, RuntimeError):
+        present = ", ".join(d.alias for d in wp.get_devices())
+        raise ValueError(f"{name}: no Warp device {device!r}; present: {present}") from None
+
+
+def unit_mixup_hint(centers: np.ndarray, radii: np.ndarray) -> str:
+    """A sentence for an error when the radii look tiny against the spread of the centres, the sign of centres and
+    radii in different units (centres in millimetres, radii in metres); '' when they look consistent.
+
+    N particles of mean diameter d packed densely span about N^(1/3) d; centres that spread a hundred times wider
+    than that are far from any body of touching spheres (a DEM specimen, a packing, a granular flow).
+
+    Args:
+        centers: Particle centres, shape (N, 3), float64, finite.
+        radii: Particle radii, shape (N,), float64, > 0.
+    """
+    if len(radii) < 2:
+        return ""
+    d = 2.0 * float(np.mean(radii))
+    spread = float(np.max(np.ptp(centers, axis=0)))
+    dense = max(1.0, len(radii) ** (1.0 / 3.0)) * d
+    if spread <= 100.0 * dense:
+        return ""
+    return (
+        f"the centres spread over {spread:.4g} while the mean radius is {d / 2:.4g}, {spread / dense:,.0f} times "
+        f"wider than {len(radii):,} touching spheres would span: are the centres and the radii in one unit (SI: "
+        "metres)? Centres in millimetres with radii in metres look like this"
+    )
+
+
+def user_stacklevel() -> int:
+    """The ``stacklevel`` for ``warnings.warn``, called from inside warp_lamp, that names the caller's first line
+    outside the package: a warning raised again by an inner re-check of the same input then points at the same
+    line, and Python shows it once."""
+    import os
+    import sys
+
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def host_array(value):
@@ -113,7 +207,7 @@ def check_device_match(device, **arrays):
                 raise ValueError(f"{name}: on {value.device}, but {found[0]} is on {found[1]}")
     if device is None:
         return found[1] if found else wp.get_device(None)
-    dev = wp.get_device(device)
+    dev = resolve_device(device)
     if found and dev != found[1]:
         raise ValueError(
             f"device: {dev} was asked for, but {found[0]} lives on {found[1]}; leave device=None to compute where "
@@ -134,7 +228,7 @@ def lamp_names(lamps) -> tuple[str, ...]:
     if isinstance(lamps, str):
         lamps = LAMPS if lamps == "all" else (lamps,)
     if not isinstance(lamps, Iterable):
-        raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {lamps!r}")
+        raise ValueError(f"lamps: expected 'all' or names from {LAMPS}, got {format_value(lamps)}")
     names = tuple(lamps)
     for name in names:
         if name not in LAMPS:
@@ -184,7 +278,7 @@ def check_particles(centers, radii) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"centers: non-finite value at index {k}: {c[k].tolist()}")
     if r.shape[0] and not (np.isfinite(r) & (r > 0)).all():
         k = _first_bad(~(np.isfinite(r) & (r > 0)))
-        raise ValueError(f"radii: must be finite and > 0; index {k} is {r[k]!r}")
+        raise ValueError(f"radii: must be finite and > 0; index {k} is {format_value(r[k])}")
     return c, r
 
 
@@ -208,27 +302,27 @@ def check_mask(name: str, mask, n: int) -> np.ndarray:
         raise ValueError(f"{name}: expected shape ({n},), got {m.shape}")
     if m.dtype.kind == "f" and n and not np.isfinite(m).all():
         k = int(np.flatnonzero(~np.isfinite(m))[0])
-        raise ValueError(f"{name}: non-finite value at index {k}: {m[k]!r}")
+        raise ValueError(f"{name}: non-finite value at index {k}: {format_value(m[k])}")
     return (m != 0).astype(np.int32)
 
 
 def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
     """One finite real number > 0 (>= 0 with ``allow_zero``); strings, None and booleans are refused by type."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name}: expected a number, got {type(value).__name__} {value!r}")
+        raise TypeError(f"{name}: expected a number, got {type(value).__name__} {format_value(value)}")
     v = float(value)
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         need = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name}: must be finite and {need}, got {value!r}")
+        raise ValueError(f"{name}: must be finite and {need}, got {format_value(value)}")
     return v
 
 
 def check_integer(name: str, value, *, minimum: int = 0) -> int:
     """One integer >= ``minimum`` (Python or NumPy integers; not booleans, floats or strings)."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected an integer >= {minimum}, got {type(value).__name__} {value!r}")
+        raise TypeError(f"{name}: expected an integer >= {minimum}, got {type(value).__name__} {format_value(value)}")
     if value < minimum:
-        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {format_value(value)}")
     return int(value)
 
 
@@ -258,7 +352,7 @@ def check_vec3(name: str, value, *, positive: bool = False) -> np.ndarray:
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         need = "finite and > 0" if positive else "finite"
-        raise ValueError(f"{name}: must be {need}; index {k} is {arr[k]!r}")
+        raise ValueError(f"{name}: must be {need}; index {k} is {format_value(arr[k])}")
     return arr
 
 
@@ -268,7 +362,9 @@ def check_box(lower, upper) -> tuple[np.ndarray, np.ndarray]:
     hi = check_vec3("upper", upper)
     if np.any(hi <= lo):
         k = int(np.flatnonzero(hi <= lo)[0])
-        raise ValueError(f"upper: must exceed lower on every axis; axis {k} has {hi[k]!r} <= {lo[k]!r}")
+        raise ValueError(
+            f"upper: must exceed lower on every axis; axis {k} has {format_value(hi[k])} <= {format_value(lo[k])}"
+        )
     return lo, hi
 
 
@@ -276,7 +372,7 @@ def check_shape(shape) -> tuple[int, int, int]:
     """Three integers >= 1 (cells along x, y, z)."""
     sh = np.asarray(host_array(shape)).reshape(-1)
     if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
-        raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {shape!r}")
+        raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {format_value(shape)}")
     if np.any(sh < 1):
         k = int(np.flatnonzero(sh < 1)[0])
         raise ValueError(f"shape: every entry must be >= 1; index {k} is {int(sh[k])}")
@@ -294,15 +390,19 @@ def check_subdivisions(subdivisions) -> tuple[int, int, int]:
             return tuple(int(x) for x in items)
     elif not isinstance(value, bool) and isinstance(value, (int, np.integer)) and value >= 1:
         return (int(value),) * 3
-    raise ValueError(f"subdivisions: expected an integer >= 1, or three (x, y, z), got {subdivisions!r}")
+    raise ValueError(f"subdivisions: expected an integer >= 1, or three (x, y, z), got {format_value(subdivisions)}")
 
 
 def check_max_bytes(max_bytes) -> float:
     """A memory budget [bytes]: a number >= 0 (``math.inf`` for none). NaN, negatives and non-numbers raise."""
     if isinstance(max_bytes, bool) or not isinstance(max_bytes, numbers.Real):
-        raise TypeError(f"max_bytes: expected a number of bytes, got {type(max_bytes).__name__} {max_bytes!r}")
+        raise TypeError(
+            f"max_bytes: expected a number of bytes, got {type(max_bytes).__name__} {format_value(max_bytes)}"
+        )
     if math.isnan(max_bytes) or max_bytes < 0:
-        raise ValueError(f"max_bytes: expected a number of bytes >= 0 (math.inf for no budget), got {max_bytes!r}")
+        raise ValueError(
+            f"max_bytes: expected a number of bytes >= 0 (math.inf for no budget), got {format_value(max_bytes)}"
+        )
     return max_bytes
 
 
@@ -337,11 +437,11 @@ def lamp_rotation(rotation, *, name: str = "rotation") -> np.ndarray:
         raise ValueError(f"{name}: expected a 3 x 3 rotation matrix or a unit quaternion ({e})") from None
     if not np.isfinite(r).all():
         k = int(np.flatnonzero(~np.isfinite(r).ravel())[0])
-        raise ValueError(f"{name}: must be finite; flat index {k} is {r.ravel()[k]!r}")
+        raise ValueError(f"{name}: must be finite; flat index {k} is {format_value(r.ravel()[k])}")
     if r.shape == (4,):
         norm = float(np.linalg.norm(r))
         if abs(norm - 1.0) > 1e-6:
-            raise ValueError(f"{name}: a quaternion (x, y, z, w) must have unit norm, got {norm!r}")
+            raise ValueError(f"{name}: a quaternion (x, y, z, w) must have unit norm, got {format_value(norm)}")
         x, y, z, w = r / norm
         r = np.array(
             [

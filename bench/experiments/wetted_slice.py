@@ -1,4 +1,6 @@
 """A picture of what each mode loads: one x-slice of the slot block, "first" beside "all" (the wetted surface).
+The slot block is a lattice of spacing 1 with radii in [0.4, 0.5], without a physical unit: lengths are labelled
+in lattice spacings.
 
 Left: the first-surface lamp. Each dot is where a +-y or +-z lamp ray first meets a sphere in the slice's plane
 (the memo's Figures 10-14, as a slice). Right: the wetted-surface mode with rho = one mean radius: blue voxels are
@@ -17,11 +19,10 @@ import warp_lamp as wl
 from warp_lamp.scenes import scene_slot_block
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--out", default="wetted_slice.png")
-    ap.add_argument("--cells", type=float, default=4.0)
-    args = ap.parse_args()
+def figure(scene, cells: float = 4.0, *, unit: str = "lattice spacings", window=((6, 24), (6, 21))):
+    """The two panels for a cut block ``scene`` at ``cells`` per mean diameter, lengths labelled in ``unit`` (the
+    scene's own: the slot block is a lattice of spacing 1, no physical unit); ``window`` the (y, z) ranges shown,
+    or None for all. Returns the figure."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -29,9 +30,8 @@ def main():
     from matplotlib.patches import Circle
 
     wp.config.log_level = wp.LOG_WARNING
-    scene = scene_slot_block()
     rho = float(scene.radii.mean())
-    grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=args.cells, margin=2.0 * rho + rho)
+    grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=cells, margin=2.0 * rho + rho)
     surf = wetted_solve(scene.centers, scene.radii, probe_radius=rho, grid=grid, keep_owners=True, device="cpu")
     d = surf.diagnostics()
     lamp = wl.lamp_update(scene.centers, scene.radii, grid=grid, device="cpu").diagnostics()
@@ -46,8 +46,8 @@ def main():
             if abs(c[0] - x0) < r:
                 ax.add_patch(Circle((c[1], c[2]), np.sqrt(r * r - (c[0] - x0) ** 2), color="0.75", lw=0))
         ax.set_aspect("equal")
-        ax.set_xlabel("y [m]")
-    axes[0].set_ylabel("z [m]")
+        ax.set_xlabel(f"y [{unit}]")
+    axes[0].set_ylabel(f"z [{unit}]")
     # "first": where each y ray (grid 1 spans (z, x)) and z ray (grid 2 spans (x, y)) meets its owner.
     for name, color in (("-y", "tab:red"), ("+y", "tab:orange")):
         dep = lamp.depths[name][:, ix]
@@ -65,13 +65,23 @@ def main():
     own_z = d.owners[2][ix, :, :]  # (y, face along z)
     jy, fz = np.nonzero(own_z >= 0)
     axes[1].plot(ys[jy], o[2] + fz * h[2], ".", ms=2.5, color="tab:green", label="z crossings")
-    axes[1].set_title(f'"all", rho = {rho:.3f} m (one mean radius): fluid voxels and every crossing')
+    axes[1].set_title(f'"all", \u03c1 = {rho:.3f} (one mean radius): fluid voxels and every crossing')
     for ax in axes:
-        ax.set_xlim(6, 24)
-        ax.set_ylim(6, 21)
+        if window is not None:
+            ax.set_xlim(*window[0])
+            ax.set_ylim(*window[1])
         ax.legend(loc="lower left", fontsize=8, markerscale=3)
-    fig.suptitle(f"{scene.name}: slice x = {x0:.2f} m, {args.cells:g} cells per diameter")
+    fig.suptitle(f"{scene.name}: slice x = {x0:.2f}, {cells:g} cells per diameter; lengths in {unit}")
     fig.tight_layout()
+    return fig
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default="wetted_slice.png")
+    ap.add_argument("--cells", type=float, default=4.0)
+    args = ap.parse_args()
+    fig = figure(scene_slot_block(), args.cells)
     fig.savefig(args.out, dpi=110)
     print(args.out)
 
