@@ -246,3 +246,34 @@ def test_a_bad_particles_file_is_one_line_with_its_line_and_column(capsys, tmp_p
     bad.write_text("x,y,z,radius\n0,0,0,1\n1,two,0,1\n")
     line = fail(capsys, ["--particles", str(bad), "--device", "cpu"])
     assert re.search(r"--particles .*bad\.csv, line 3, column 2: not a number: 'two'", line)
+
+
+def test_walls_and_tolerance_on_the_command_line(capsys, tmp_path, ball_csv, device):
+    """--wall bounds the fluid (body plus wall take P times the top window on z, the wall's force is reported, the
+    forces equal lamp_forces with the same wall); --tolerance prints its choice and runs it; either beside the
+    settings it chooses is refused."""
+    path, centers, radii = ball_csv
+    z0 = float((centers[:, 2] - radii).min())
+    out = tmp_path / "w.json"
+    argv = ["--particles", str(path), "--device", device, "--repeats", "1", "--json", str(out)]
+    assert cli.main([*argv, "--wall", "0", "0", str(z0 * 1e3), "0", "0", "1"]) == 0
+    report = json.loads(out.read_text())
+    grid = wl.LampGrid.enclosing(centers, radii, cells_per_diameter=4)
+    wall = [((0.0, 0.0, z0), (0.0, 0.0, 1.0))]
+    expect = wl.lamp_forces(centers, radii, 10e6, grid=grid, walls=wall, device=device)
+    np.testing.assert_allclose(report["force_sum_N"], expect.sum(axis=0), rtol=0, atol=0)
+    window = 10e6 * grid.cell_area[2] * grid.counts[2].prod()
+    total = report["force_sum_N"][2] + report["wall_forces_N"][0][2]
+    assert total == pytest.approx(-window, rel=1e-7)
+    assert report["inputs"]["walls"] == [{"point": [0.0, 0.0, z0 * 1e3], "normal": [0.0, 0.0, 1.0]}]
+    capsys.readouterr()
+    assert cli.main([*argv, "--tolerance", "0.05"]) == 0
+    text = capsys.readouterr().out
+    assert "choice     tolerance 0.05:" in text
+    report = json.loads(out.read_text())
+    from warp_lamp.tolerance import choose_settings
+
+    choice = choose_settings(0.05, device)
+    assert report["inputs"]["tolerance"] == 0.05 and report["cells_per_diameter"] == choice.cells_per_diameter
+    line = fail(capsys, [*argv, "--tolerance", "0.05", "--criterion", "area"])
+    assert "--tolerance chooses --criterion itself" in line

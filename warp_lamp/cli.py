@@ -229,7 +229,30 @@ _RUN_OPTIONS = [
         1,
         dict(type=_COUNT, metavar="K", help="average the forces over K fixed lamp frames (isotropic pressure only)"),
     ),
-    # --walls (planes the lamp stops at) joins here with the walls feature; _lamp_options passes it on.
+    (
+        ("--wall",),
+        "walls",
+        None,
+        dict(
+            type=_number("float", finite_only=True),
+            nargs=6,
+            action="append",
+            metavar=("X", "Y", "Z", "NX", "NY", "NZ"),
+            help="a wall that bounds the fluid: a point on it and its normal, pointing into the fluid, in the "
+            "particles' units; repeat for more walls (a platen under the body: --wall 0 0 0 0 0 1)",
+        ),
+    ),
+    (
+        ("--tolerance",),
+        "tolerance",
+        None,
+        dict(
+            type=_number("float"),
+            metavar="TOL",
+            help="ask for accuracy instead of settings: the largest RMS per-particle force error as a fraction "
+            "(0.01 = 1%%); chooses --criterion and --cells-per-diameter and prints the choice",
+        ),
+    ),
     # the load
     (("--pressure",), "pressure", 10e6, dict(type=_FLOAT, metavar="PA", help="fluid pressure [Pa], > 0")),
     (
@@ -316,6 +339,8 @@ _RUN_OPTIONS = [
 #: Library argument names, as they start its error messages, and the flags that set them.
 _LIBRARY_FLAGS = {
     "cells_per_diameter": "--cells-per-diameter",
+    "walls": "--wall",
+    "tolerance": "--tolerance",
     "pressure": "--pressure",
     "probe_radius": "--probe-radius",
     "depth_slots": "--depth-slots",
@@ -409,6 +434,7 @@ def _merge_run_options(args) -> None:
     """Join the run options given before the word run and after it, never dropping either: one given in both
     places must agree; before bench they are refused (bench takes its own options after its name)."""
     args.given = set()
+    args.chosen = set()  # what --tolerance chose
     for _, dest, default, _ in _RUN_OPTIONS:
         top = getattr(args, "top_" + dest)
         after = getattr(args, dest, None) if args.command == "run" else None
@@ -568,6 +594,19 @@ def _check_run(args) -> None:
         for dest in ("format", "timestep", "scale"):
             if dest in given:
                 raise CliError(f"{_flag(dest)} reads --particles FILE: add --particles, or leave {_flag(dest)} out")
+    if args.tolerance is not None:
+        chosen = [
+            dest
+            for dest in ("criterion", "cells_per_diameter", "resolver", "subpoints", "depth_slots")
+            if dest in given
+        ]
+        if chosen:
+            raise CliError(f"--tolerance chooses {_flag(chosen[0])} itself: give one or the other")
+        if args.surfaces == "all" or args.frames > 1:
+            raise CliError(
+                "--tolerance chooses among the first-surface estimators of one frame: leave out "
+                "--surfaces all and --frames"
+            )
     if args.criterion != "area":
         for dest in ("resolver", "subpoints", "depth_slots"):
             if dest in given:
@@ -752,8 +791,10 @@ def _lamp_options(args) -> dict:
     """ShiningLamp's keywords for the run: only those given, so the library's defaults stay its own."""
     options = {"criterion": args.criterion, "lamps": args.lamps}
     for dest in ("resolver", "subpoints", "depth_slots", "frames"):
-        if dest in args.given:
+        if dest in args.given or (dest in args.chosen):
             options[dest] = getattr(args, dest)
+    if args.walls:
+        options["walls"] = [(w[:3], w[3:]) for w in args.walls]
     if args.surfaces == "all":
         options["surfaces"] = "all"
         options["probe_radius"] = args.probe_radius
@@ -774,8 +815,12 @@ def _inputs(args, grid, pressure) -> dict:
         "lamp_rotation": grid.rotation.tolist(),
     }
     for dest in ("resolver", "subpoints", "depth_slots"):
-        if dest in args.given:
+        if dest in args.given or dest in args.chosen:
             out[dest] = getattr(args, dest)
+    if args.walls:
+        out["walls"] = [{"point": list(w[:3]), "normal": list(w[3:])} for w in args.walls]
+    if args.tolerance is not None:
+        out["tolerance"] = args.tolerance
     if args.info is not None:
         out["particles_format"] = args.info.format
         out["particles_scale"] = args.info.scale
@@ -809,6 +854,15 @@ def _run(args) -> int:
         for line in args.info.summary().splitlines():
             say(f"particles  {line}")
     n = len(radii)
+    if args.tolerance is not None:
+        from warp_lamp.tolerance import choose_settings
+
+        choice = choose_settings(args.tolerance, device)
+        say(f"choice     {choice.describe()}")
+        args.cells_per_diameter = choice.cells_per_diameter
+        for dest, value in choice.options().items():
+            setattr(args, dest, value)
+            args.chosen.add(dest)
     cpd = args.cells_per_diameter
     if args.sigma is not None:
         pressure = args.sigma
@@ -888,6 +942,8 @@ def _run(args) -> int:
         },
         "skipped": {"invalid": int(invalid), "outside": int(outside)},
     }
+    if args.walls and args.frames == 1:
+        report["wall_forces_N"] = lamp.wall_forces_numpy(pressure).tolist()
     if R is not None:
         report["moment_over_PpiR3"] = float(np.linalg.norm(moment) / (p_scale * np.pi * R**3))
         sigma = envelope_stress(centers, f, body_center, 4.0 / 3.0 * np.pi * R**3)
@@ -923,11 +979,13 @@ def _run(args) -> int:
     say(f"update     {report['update_ms_median']:.3f} ms (median of {args.repeats}, after a first untimed update)")
     per_lamp = "" if lit is None else f"; cells lit per lamp {lit}"
     say(f"surface    {report['lit_particles']:,} particles lit{per_lamp}")
-    balanced = args.lamps == "all"
+    balanced = args.lamps == "all" and not args.walls
     say(
         f"balance    sum of forces = {report['force_sum_N']} N"
-        + (" (exact zero by construction)" if balanced else " (only axes with both lamps on balance)")
+        + (" (exact zero by construction)" if balanced else " (only axes with both lamps on and no wall balance)")
     )
+    for k, fw in enumerate(report.get("wall_forces_N", [])):
+        say(f"wall {k}     force on the wall {np.round(fw, 6).tolist()} (the reaction of the rays it stopped)")
     if R is not None:
         say(f"moment     |M| / (P pi R^3) = {report['moment_over_PpiR3']:.3e}")
     else:

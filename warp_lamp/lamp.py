@@ -43,6 +43,7 @@ from warp_lamp.validate import (
     check_warp_array,
     lamp_mask,
     lamp_names,
+    resolve_device,
 )
 from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, check_probe_radius
 
@@ -333,7 +334,7 @@ class ShiningLamp:
                 leaves ``criterion`` and the area settings to the choice. :attr:`choice` (and
                 :meth:`diagnostics`) say what was chosen.
         """
-        device = wp.get_device(device)
+        device = resolve_device(device)
         #: What ``tolerance=`` chose (None without it).
         self.choice = None
         if isinstance(grid, LampGridSpec):
@@ -634,7 +635,7 @@ class FrameAveragedLamp:
         grids = [grid.rotated(r) for r in lamp_frame_rotations(frames)]
         need = sum(g.n_samples if area else g.n_cells for g in grids) * 16 * (checked.depth_slots if area else 1)
         check_budget(need, checked.max_bytes, f"frames: {frames} frames need {need:,} bytes", "raise max_bytes")
-        device = wp.get_device(device)
+        device = resolve_device(device)
         #: The per-frame lamps.
         self.frames = [ShiningLamp._build(g, checked, device) for g in grids]
         for child in self.frames:
