@@ -41,6 +41,7 @@ from warp_lamp.validate import (
     check_vec3,
     check_walls,
     check_warp_array,
+    format_value,
     lamp_mask,
     lamp_names,
     resolve_device,
@@ -73,14 +74,14 @@ def _check_criterion(criterion) -> int | str:
     if criterion not in (0, 1) or isinstance(criterion, bool):
         raise ValueError(
             f"criterion: expected 0 (cell overlaps disk), 1 (cell centre ray) or 'area' (visible area), got "
-            f"{criterion!r}"
+            f"{format_value(criterion)}"
         )
     return int(criterion)
 
 
 def _check_int(name: str, value, lo: int, hi: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {value!r}")
+        raise ValueError(f"{name}: expected an integer in [{lo}, {hi}], got {format_value(value)}")
     return int(value)
 
 
@@ -144,20 +145,20 @@ class LampOptions:
     ) -> LampOptions:
         """The options, or an error naming the first bad one."""
         if order not in ("auto", True, False):
-            raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
+            raise ValueError(f"order: expected 'auto', True or False, got {format_value(order)}")
         if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
-            raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
+            raise ValueError(f"split: expected 'auto' or an integer >= 0, got {format_value(split)}")
         if resolver not in AREA_RESOLVERS:
-            raise ValueError(f"resolver: expected one of {AREA_RESOLVERS}, got {resolver!r}")
+            raise ValueError(f"resolver: expected one of {AREA_RESOLVERS}, got {format_value(resolver)}")
         if follow not in (True, False):
-            raise ValueError(f"follow: expected True or False, got {follow!r}")
+            raise ValueError(f"follow: expected True or False, got {format_value(follow)}")
         criterion = _check_criterion(criterion)
         lamps = lamp_names(lamps)
         area = criterion == "area"
         depth_slots = _check_int("depth_slots", depth_slots, 1, lamp_kernels.MAX_SLOTS) if area else 1
         subpoints = _check_int("subpoints", subpoints, 1, 16)
         if surfaces not in ("first", "all"):
-            raise ValueError(f"surfaces: expected 'first' or 'all', got {surfaces!r}")
+            raise ValueError(f"surfaces: expected 'first' or 'all', got {format_value(surfaces)}")
         if surfaces == "all":
             if probe_radius is None:
                 raise ValueError("probe_radius: surfaces='all' needs the probe radius rho [m] (see the docstring)")
