@@ -100,6 +100,7 @@ class LammpsLamp:
             lamp's own cost), ``write`` (filling the fix's forces), lists with one entry per call.
         calls: Calls so far.
         last_forces: The forces of the last call [N], shape (nlocal, 3), in the local atoms' order of that call.
+        last_tags: The atom ids of that call, shape (nlocal,): ``last_forces[k]`` is atom ``last_tags[k]``'s.
     """
 
     def __init__(self, lmp, pressure, *, every: int = 1, group: str = "all", fix_id: str = "warp_lamp", **lamp_options):
@@ -133,6 +134,7 @@ class LammpsLamp:
         self.timings = {"read": [], "lamp": [], "write": []}
         self.calls = 0
         self.last_forces = np.zeros((nlocal, 3))
+        self.last_tags = np.zeros(nlocal, dtype=np.int64)
         lmp.command(f"fix {fix_id} {group} external pf/callback {int(every)} 1")
         lmp.set_fix_external_callback(fix_id, self.callback, None)
 
@@ -155,6 +157,7 @@ class LammpsLamp:
         t2 = time.perf_counter()
         fext[:nlocal] = f
         self.last_forces = f
+        self.last_tags = np.array(tag[:nlocal])
         t3 = time.perf_counter()
         for key, dt in (("read", t1 - t0), ("lamp", t2 - t1), ("write", t3 - t2)):
             self.timings[key].append(dt)
