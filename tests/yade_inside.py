@@ -1,6 +1,6 @@
 """Run inside YADE by tests/test_engines.py: checks of YadeLamp and yade_contacts, written to a JSON file.
 
-    <python that sees warp> /usr/bin/yade -j1 -n -x tests/yade_inside.py OUT.json
+<python that sees warp> /usr/bin/yade -j1 -n -x tests/yade_inside.py OUT.json
 """
 
 import json

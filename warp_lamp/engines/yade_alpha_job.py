@@ -21,8 +21,8 @@ import numpy as np
 
 def main(argv):
     from yade import O
-    from yade.utils import sphere
     from yade.minieigenHP import Matrix3
+    from yade.utils import sphere
     from yade.wrapper import ForceResetter, TesselationWrapper
 
     src, dst = argv[:2]
