@@ -338,3 +338,25 @@ def test_lammps_lamp_bad_input(lmp):
         LammpsLamp(lmp, 1.0, every=0)
     with pytest.raises(ValueError, match="no atoms"):
         LammpsLamp(lmp, 1.0)
+
+
+def test_bench_engines_skips_without_yade(monkeypatch):
+    """Where YADE is missing the peer row says so instead of failing, and the table prints the reason."""
+    from warp_lamp import bench_engines
+
+    monkeypatch.delenv("WARP_LAMP_YADE", raising=False)
+    monkeypatch.setattr(bench_engines.shutil, "which", lambda name: None)
+    result = bench_engines.bench_engines(progress=False)
+    assert result == {"skipped": "YADE not installed (apt-get install yade)"}
+    assert "skipped (YADE not installed" in bench_engines.format_engines(result)
+    with pytest.raises(FileNotFoundError, match="yade"):
+        bench_engines.yade_alpha_caps(scene_lattice_ball(), [1.0], [0.5])
+
+
+def test_alpha_for_probe_is_the_power_distance():
+    """alpha_for_probe gives the power distance of a probe ball touching a sphere: |c - p|^2 - r^2 at
+    |c - p| = rho + r, for the alpha shape's weighted points (weight r^2)."""
+    from warp_lamp.bench_engines import alpha_for_probe
+
+    for rho, r in ((0.45, 0.45), (0.9, 0.45), (0.005, 0.0025)):
+        assert np.isclose(alpha_for_probe(rho, r), (rho + r) ** 2 - r**2, rtol=1e-15)
