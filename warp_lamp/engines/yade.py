@@ -14,18 +14,19 @@ and in the script::
     lamp = YadeLamp(10e6)                                 # every sphere in O.bodies, 10 MPa
     O.engines = O.engines[:-1] + [PyRunner(command="lamp()", iterPeriod=10), O.engines[-1]]
 
-Access, measured on the SphereTest specimen (4,628 spheres; ``bench/engines/README.md``):
+Access, measured on the SphereTest specimen (4,628 spheres; ``docs/engines.md``,
+``bench/experiments/yade_access.py``):
 
 - Positions: YADE offers no array view. The fastest read is ``yade._utils.coordsAndDisplacements(axis)``, a C++
-  loop over the bodies that returns one list of floats per axis (three calls, ~0.6 ms), against ~16-40 ms for a
+  loop over the bodies that returns one list of floats per axis (three calls, 0.57 ms), against 15-54 ms for a
   Python loop over ``O.bodies`` (``b.state.pos``). It lists every body in ``O.bodies`` order (walls and facets too),
   so the adapter maps its sphere ids into that order once, and again when the body count changes. Radii are read
   once (``b.shape.radius``); call :meth:`YadeLamp.refresh_radii` after growing particles.
 - Forces: ``O.forces.setPermF(id, f)`` keeps a force on a body until it is set again, so a ``PyRunner`` every N
   iterations applies the lamp between its calls (``addF`` lasts one step). Called with plain lists (``f.tolist()``)
-  it costs ~0.2 us per body (a ``Vector3(*row)`` per body costs 3x, NumPy row indexing 10x more); the adapter
-  writes only the rows that changed since its last call. The first ``setPermF`` in a scene costs ~25 ms (the
-  container grows).
+  it costs 0.74 ms for all 4,628 (a ``Vector3(*row)`` per body 2.3-6.5 ms, NumPy rows 9-13 ms); the adapter writes
+  only the rows that changed since its last call (a few per call in a settling body). The first ``setPermF`` loop
+  in a scene costs ~20-26 ms (the force container grows).
 
 Traps a YADE user meets (each checked on 2023.02a):
 
