@@ -47,6 +47,7 @@ def main(out_path):
     O.dt = 1e-6
     lamp = YadeLamp(1e5)
     out["ids_found"] = sorted(lamp.ids.tolist()) == sorted(ids)
+    out["n"] = len(ids)
     x = np.array([tuple(O.bodies[i].state.pos) for i in lamp.ids.tolist()])
     out["positions_equal"] = bool(np.array_equal(lamp.positions(), x))
     lamp()
@@ -58,6 +59,9 @@ def main(out_path):
     out["first_written"] = lamp.written
     lamp()
     out["second_written"] = lamp.written
+    lamp.rewrite_all()
+    lamp()
+    out["rewritten"] = lamp.written
     O.run(20, True)
     perm = np.array([tuple(O.forces.permF(i)) for i in lamp._ids_list])
     out["perm_kept"] = bool(np.array_equal(perm, expected))

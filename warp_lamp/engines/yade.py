@@ -71,17 +71,19 @@ def _sphere_ids(omega) -> list[int]:
 class YadeLamp:
     """Shining-lamp pressure on YADE's spheres, set as permanent forces; call it from a ``PyRunner``.
 
-    Each call reads the sphere centres (:meth:`positions`), runs an :class:`~warp_lamp.engines.EngineLamp` kept
-    between calls, and sets each changed force with ``O.forces.setPermF``. The force stays until the next call,
-    so ``PyRunner(command="lamp()", iterPeriod=N)`` refreshes the lamp every N iterations (the memo's
-    ``ct_pressrate``). The adapter owns the permanent forces of its spheres: it overwrites any set elsewhere.
+        Each call reads the sphere centres (:meth:`positions`), runs an :class:`~warp_lamp.engines.EngineLamp` kept
+        between calls, and sets each changed force with ``O.forces.setPermF``. The force stays until the next call,
+        so ``PyRunner(command="lamp()", iterPeriod=N)`` refreshes the lamp every N iterations (the memo's
+        ``ct_pressrate``). The adapter owns the permanent forces of its spheres, and remembers what it wrote: a row is
+    written again only when the lamp's force on it changes, so after setting permanent forces on these spheres
+    elsewhere, call :meth:`rewrite_all`.
 
-    Attributes:
-        ids: Body ids of the spheres the lamp sees, shape (N,).
-        core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
-        timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
-            ``read`` (positions), ``lamp`` (the lamp's own cost), ``write`` (setting the forces).
-        written: Rows written by the last call.
+        Attributes:
+            ids: Body ids of the spheres the lamp sees, shape (N,).
+            core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
+            timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
+                ``read`` (positions), ``lamp`` (the lamp's own cost), ``write`` (setting the forces).
+            written: Rows written by the last call.
     """
 
     def __init__(self, pressure, *, ids=None, omega=None, **lamp_options):
@@ -161,6 +163,10 @@ class YadeLamp:
             set_force(i, v)
         self._written[rows] = f[rows]
         return len(rows)
+
+    def rewrite_all(self) -> None:
+        """Make the next call write every row (after permanent forces were set on these spheres elsewhere)."""
+        self._written[:] = np.nan
 
     def __call__(self) -> None:
         """Read, run the lamp, write: one refresh of the pressure forces."""
