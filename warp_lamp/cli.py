@@ -406,7 +406,16 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
         "--paper about 4 minutes on 2 CPU cores.",
         formatter_class=_Formatter,
     )
-    bench.add_argument("what", nargs="?", default="lamp", choices=("lamp", "porosity"), help="what to benchmark")
+    bench.add_argument(
+        "what",
+        nargs="?",
+        default="lamp",
+        choices=("lamp", "porosity", "tolerance", "engines"),
+        help="what to benchmark: the lamp's speed against error; the porosity methods; tolerance=, its "
+        "speed-error table and whether its choices meet their tolerance (about 5 minutes on a CPU); other engines' "
+        "pressure boundaries as peers (YADE's alpha caps, where YADE is installed)",
+    )
+    bench.add_argument("--sweep", action="store_true", help="engines: sweep YADE's alpha")
     bench.add_argument("--paper", action="store_true", help="porosity: also reproduce the paper's Table 1 and 3.2")
     bench.add_argument("--target", action="store_true", help="porosity: also time the 1 mm, 0.1 mm target scene")
     bench.add_argument("--histograms", metavar="PATH", help="porosity --paper: histograms as a PNG (needs matplotlib)")
@@ -556,9 +565,19 @@ def _write_json(path: str, data: dict) -> None:
 
 
 def _check_bench(args) -> None:
-    lamp_only = {"--plot": args.plot, "--repeats": args.repeats}
+    lamp_only = {"--plot": args.plot}
     porosity_only = {"--paper": args.paper, "--target": args.target, "--histograms": args.histograms}
-    unused = lamp_only if args.what == "porosity" else porosity_only
+    unused = {**porosity_only, "--sweep": args.sweep}
+    if args.what == "porosity":
+        unused = {**lamp_only, "--repeats": args.repeats, "--sweep": args.sweep}
+    elif args.what in ("tolerance", "engines"):
+        unused = {**lamp_only, **porosity_only, "--quick": args.quick}
+        if args.what == "tolerance":
+            unused["--sweep"] = args.sweep
+        else:
+            unused["--device"] = args.device
+        if args.from_json:
+            raise CliError(f"--from-json is not used by bench {args.what}")
     for flag, value in unused.items():
         if value not in (None, False):
             raise CliError(f"{flag} is not used by bench {args.what}")
@@ -719,7 +738,8 @@ def main(argv=None) -> int:
         wp.init()
         if args.command == "bench":
             _check_bench(args)
-            return _bench_porosity(args) if args.what == "porosity" else _bench(args)
+            runners = {"porosity": _bench_porosity, "tolerance": _bench_tolerance, "engines": _bench_engines}
+            return runners.get(args.what, _bench)(args)
         _check_run(args)
         return _run(args)
     except CliError as e:
@@ -1093,6 +1113,51 @@ def _bench(args) -> int:
     if args.plot:
         plot(result, args.plot)
         print(f"wrote {args.plot}", file=text)
+    return 0
+
+
+def _bench_tolerance(args) -> int:
+    from warp_lamp.bench_tolerance import check_tolerance
+    from warp_lamp.tolerance import load_table
+
+    text = sys.stderr if args.json == "-" else sys.stdout
+    table = load_table()
+    out = {"table": table, "checks": {}}
+    print("The speed-error table tolerance= reads (warp_lamp/data/speed_error.json):", file=text)
+    print("| setting | cells/d | error (max over its scenes) | time / criterion 1 at 4 |", file=text)
+    print("| --- | --- | --- | --- |", file=text)
+    for row in table["rows"]:
+        name = "criterion 1" if row["criterion"] == 1 else f"area {row['resolver']} D = {row['depth_slots']}"
+        ratios = ", ".join(f"{k} {v:.3g}x" for k, v in row["ratio"].items())
+        print(f"| {name} | {row['cells_per_diameter']:g} | {100 * row['error']:.3g}% | {ratios} |", file=text)
+    for device in args.devices or [None]:
+        rows = check_tolerance(table, device)
+        out["checks"][str(device)] = rows
+        print(
+            f"\nChoices on {device or 'the default device'}, and the error each gives (table scenes, held out):",
+            file=text,
+        )
+        print("| tolerance | choice | measured errors | met |", file=text)
+        print("| --- | --- | --- | --- |", file=text)
+        for r in rows:
+            if r["choice"] is None:
+                print(f"| {r['tolerance']:g} | none in the table | - | - |", file=text)
+                continue
+            m = ", ".join(f"{k} {100 * v:.3g}%" for k, v in r["measured"].items())
+            print(f"| {r['tolerance']:g} | {r['choice']} | {m} | {'yes' if r['ok'] else 'NO'} |", file=text)
+    if args.json:
+        _write_json(args.json, out)
+    return 0
+
+
+def _bench_engines(args) -> int:
+    from warp_lamp.bench_engines import bench_engines, format_engines
+
+    text = sys.stderr if args.json == "-" else sys.stdout
+    result = bench_engines(repeats=args.repeats or 3, sweep=args.sweep, progress=not args.no_progress)
+    print(format_engines(result), file=text)
+    if args.json:
+        _write_json(args.json, result)
     return 0
 
 
