@@ -92,8 +92,9 @@ def test_subpoints_equal_the_reference_unit_for_unit(device, rng):
 
 def test_exact_resolver_matches_the_reference_up_to_float32_rounding(device, rng):
     """Exact resolver (float32 in the kernel, float64 in the reference): a rounding may move one unit (of
-    4096 per cell) between seeds or lamps; no particle is off by more than 2 units per axis, and under 2% of the
-    entries differ at all."""
+    4096 per cell) between seeds or lamps; no particle is off by more than 2 units per axis, and under 5% of the
+    entries differ at all (2% before issue 19: a raster correction gives a seed a whole number of units, which in a
+    fully covered cell lies on the payout's floor boundary, where float32 and float64 may round apart)."""
     for name, c, r in scenes(rng):
         for cpd, d in ((2, 3), (3.3, 4)):
             grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=cpd)
@@ -101,7 +102,7 @@ def test_exact_resolver_matches_the_reference_up_to_float32_rounding(device, rng
             ref = area_estimate_reference(c, r, grid, depth_slots=d, resolver="exact")
             diff = np.abs(got - ref.units)
             assert diff.max() <= 2, f"{name} cpd={cpd}: max {diff.max()}"
-            assert np.count_nonzero(diff) <= 0.02 * diff.size, f"{name} cpd={cpd}: {np.count_nonzero(diff)}"
+            assert np.count_nonzero(diff) <= 0.05 * diff.size, f"{name} cpd={cpd}: {np.count_nonzero(diff)}"
 
 
 @pytest.mark.parametrize("resolver", ["exact", "subpoints"])

@@ -1,25 +1,37 @@
-"""Per-cell kernel of the lamp's visible-area criterion (issue 15): gather, resolve, balance and scatter.
+"""Per-cell kernel of the lamp's visible-area criterion (issues 15 and 19): gather, order, resolve, balance, scatter.
 
 One thread per cell of the three grids handles both lamps of its cell. It reads the D-slot keys the depth pass
 left at the cell's sample rays (the cell corners) and does, in this order, exactly what
-``warp_lamp.reference_area.area_estimate_reference`` documents:
+``warp_lamp.reference.area.area_estimate_reference`` documents:
 
 1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
-   when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``;
-2. resolve each seed's share of the cell, exactly (circle arcs and cell edges, float32) or on S x S sub-points;
+   when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``; then cull those
+   that cannot be first anywhere in the cell;
+2. resolve each seed's share of the cell: every point goes to the seed whose *surface* the ray meets first there
+   (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`).
+   Sub-points: S x S points, each decided by its surface depths. Exact: the seeds are put in an order that is the
+   surface order on the whole cell wherever one exists (:func:`pair_relation`, :func:`topo_order`), and clipped
+   as circle arcs front to back (:func:`exact_areas`); in a cell where two intersecting spheres' visible boundary
+   (the projection of their intersection circle, an ellipse) may cross, a ``RASTER`` x ``RASTER`` raster of surface
+   depths moves the units between the seeds where the clip's order is wrong (:func:`raster_correction`);
 3. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
    share;
 4. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
 
 Key layout (the depth pass's output): grid a has (n_u + 1) x (n_v + 1) samples, row-major (j (n_u + 1) + i) from
 ``sample_offset[a]``; sample s holds ``2 D`` keys at ``keys[(2 s + side) D + k]``, k = 0 .. D-1 ascending,
-side 0 the low lamp, 1 the high lamp, EMPTY_KEY where fewer than k + 1 spheres meet the ray.
+side 0 the low lamp, 1 the high lamp, EMPTY_KEY where fewer than k + 1 spheres meet the ray. The keys order by the
+surface depth at the corner ray (entry, or negated exit), the same order as step 2's.
 
 Counts are int64: a particle's units on one axis reach ``cells x unit`` (4096 per whole cell for the exact
 resolver), which passes 2^31 for a sphere of about 410 cells radius, a size the grid budget allows.
 
 Everything is fixed-size local storage; nothing allocates. A cell with more than MAX_SEEDS seeds keeps the front
 ones and counts itself in ``diag[DIAG_OVERFLOW]``; a cell one lamp cannot pay out counts in ``diag[DIAG_ONE_SIDED]``.
+
+Candidates are spheres. A later kind (a planar occluder, whose depth is linear across the cell) enters through
+:func:`surface_depth` alone for the sub-points and the raster, and as a pair relation that is always undecided for
+the exact clip, which then leaves the decision to the raster.
 """
 
 import warp as wp
@@ -35,11 +47,21 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 MAX_SEEDS = wp.constant(16)
 #: Angular intervals per circle: the other seeds, plus 4 cell edges, rounded up.
 MAX_IVL = wp.constant(20)
+#: Points per cell edge of the exact resolver's raster (RASTER^2 = EXACT_UNIT: one unit per point).
+RASTER = wp.constant(64)
+#: Depth of a ray that misses a candidate.
+MISS = wp.constant(wp.inf)
 
 RESOLVER_EXACT = wp.constant(0)
 RESOLVER_SUBPOINTS = wp.constant(1)
 DIAG_OVERFLOW = wp.constant(0)
 DIAG_ONE_SIDED = wp.constant(1)
+
+#: Pair relations (:func:`pair_relation`).
+REL_APART = wp.constant(0)
+REL_KEEP = wp.constant(1)
+REL_SWAP = wp.constant(2)
+REL_UNDECIDED = wp.constant(3)
 
 PI = wp.constant(3.14159265358979)
 TWO_PI = wp.constant(6.28318530717959)
@@ -269,34 +291,201 @@ def holds_corners(ox: wp.float32, oy: wp.float32, r: wp.float32, hu: wp.float32,
 
 
 @wp.func
-def subpoint_shares(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32, hu: float, hv: float, s: int):
-    """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the first seed
-    whose closed disk holds it (float32, each product and sum rounded: the reference repeats it bitwise); a
-    last seed holding all four corners holds every point. ``count`` >= 1."""
+def surface_depth(
+    ox: wp.float32, oy: wp.float32, oz: wp.float32, r: wp.float32, full: wp.int32, tx: wp.float32, ty: wp.float32
+) -> wp.float32:
+    """Depth at which the ray at (tx, ty) first meets a sphere (centre (ox, oy) in the cell, depth ``oz`` along the
+    lamp, radius r): ``oz - sqrt(r^2 - d^2)``, or MISS where ``d^2 > r^2``; a sphere marked ``full`` (its disk
+    holds the whole cell) is met everywhere. Float32, each product and sum rounded (the reference repeats it)."""
+    dx = tx - ox
+    dy = ty - oy
+    d2 = dx * dx + dy * dy
+    r2 = r * r
+    if full == 0 and d2 > r2:
+        return MISS
+    return oz - wp.sqrt(wp.max(r2 - d2, 0.0))
+
+
+@wp.func
+def first_surface(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    tx: wp.float32,
+    ty: wp.float32,
+):
+    """(the seed whose surface the ray at (tx, ty) meets first, ties to the earlier seed; the first seed whose disk
+    holds the point), each ``count`` where none does. Seed ``full`` holds every point."""
+    best = count
+    holder = count
+    depth = MISS
+    for m in range(count):
+        dm = surface_depth(ox[m], oy[m], oz[m], rr[m], wp.where(m == full, 1, 0), tx, ty)
+        if dm < MISS:
+            if holder == count:
+                holder = m
+            if dm < depth:
+                depth = dm
+                best = m
+    return best, holder
+
+
+@wp.func
+def subpoint_shares(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    hu: float,
+    hv: float,
+    s: int,
+):
+    """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the seed whose surface
+    its ray meets first (float32, each product and sum rounded: the reference repeats it bitwise); seed ``full``
+    holds every point. ``count`` >= 1."""
     shares = vec_seed_f()
-    # After the cull, a last seed that holds all four corners takes every point the others leave, untested.
-    tested = count
-    if holds_corners(ox[count - 1], oy[count - 1], rr[count - 1], hu, hv) != 0:
-        tested = count - 1
-        if tested == 0:
-            shares[0] = float(s * s)
-            return shares
+    if count == 1 and full == 0:
+        shares[0] = float(s * s)
+        return shares
     su = hu / float(s)
     sv = hv / float(s)
     for k in range(s):
         tx = (float(k) + 0.5) * su
         for kv in range(s):
             ty = (float(kv) + 0.5) * sv
-            won = tested
-            for m in range(tested):
-                dx = tx - ox[m]
-                dy = ty - oy[m]
-                if dx * dx + dy * dy <= rr[m] * rr[m]:
-                    won = m
-                    break
+            won, _holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
             if won < count:
                 shares[won] = shares[won] + 1.0
     return shares
+
+
+@wp.func
+def pair_relation(
+    xe: wp.float32,
+    ye: wp.float32,
+    ze: wp.float32,
+    re: wp.float32,
+    xl: wp.float32,
+    yl: wp.float32,
+    zl: wp.float32,
+    rl: wp.float32,
+    hu: wp.float32,
+    hv: wp.float32,
+) -> wp.int32:
+    """How seeds e (the earlier by centre depth) and l must be ordered for the clip in the cell [0, hu] x [0, hv].
+
+    REL_APART: their disks do not overlap. REL_KEEP / REL_SWAP: e's surface (or l's) is the first of the two
+    wherever both disks hold a point of the cell. REL_UNDECIDED: it may change inside the cell.
+
+    l's surface can come first where both disks hold a point only where e's chord along the ray lies inside l's
+    (else e enters first: its chord's midpoint, the centre depth, comes first). That region of e's disk is bounded
+    by e's outline and by the projection of the spheres' intersection circle, an ellipse; so where the ellipse
+    misses the cell (its bounding box misses it, or all four corners lie inside it), one answer holds on the whole
+    of e's disk in the cell, read at its point nearest e's centre. Disjoint spheres keep e first; a sphere inside
+    the other is behind it everywhere. Float32 (the reference repeats it bitwise).
+    """
+    dx = xl - xe
+    dy = yl - ye
+    dz = zl - ze
+    rs = re + rl
+    dp = dx * dx + dy * dy
+    if dp >= rs * rs:
+        return REL_APART
+    d2 = dp + dz * dz
+    if d2 >= rs * rs:
+        return REL_KEEP
+    rd = re - rl
+    if d2 <= rd * rd:
+        if re < rl:
+            return REL_SWAP
+        return REL_KEEP
+    re2 = re * re
+    rl2 = rl * rl
+    # The intersection circle: centre e + t (l - e), radius^2 rho2, normal along (dx, dy, dz).
+    t = (d2 + re2 - rl2) / (2.0 * d2)
+    rho2 = wp.max(re2 - t * t * d2, 0.0)
+    mu = xe + t * dx
+    mv = ye + t * dy
+    bu = wp.sqrt(rho2 * (dy * dy + dz * dz) / d2)
+    bv = wp.sqrt(rho2 * (dx * dx + dz * dz) / d2)
+    if mu - bu <= hu and mu + bu >= 0.0 and mv - bv <= hv and mv + bv >= 0.0:
+        # Inside the ellipse: dz^2 |q - m|^2 + ((dx, dy) . (q - m))^2 < dz^2 rho2.
+        inside = int(1)
+        for corner in range(4):
+            du = wp.where(corner % 2 == 1, hu, 0.0) - mu
+            dv = wp.where(corner / 2 == 1, hv, 0.0) - mv
+            w = dx * du + dy * dv
+            q = dz * dz * (du * du + dv * dv) + w * w - dz * dz * rho2
+            if not (q < 0.0):
+                inside = 0
+        if inside == 0:
+            return REL_UNDECIDED
+    qx = wp.clamp(xe, 0.0, hu)
+    qy = wp.clamp(ye, 0.0, hv)
+    lx = qx - xl
+    ly = qy - yl
+    dl = lx * lx + ly * ly
+    if dl > rl2:
+        return REL_KEEP
+    ex = qx - xe
+    ey = qy - ye
+    se = wp.sqrt(wp.max(re2 - (ex * ex + ey * ey), 0.0))
+    sl = wp.sqrt(rl2 - dl)
+    if zl - sl <= ze - se and ze + se <= zl + sl:
+        return REL_SWAP
+    return REL_KEEP
+
+
+@wp.func
+def topo_order(prec: vec_seed_i, count: wp.int32) -> vec_seed_i:
+    """An order of seeds 0 .. count-1 in which every seed comes after those in its ``prec`` bit mask, taking the
+    lowest free index at each step; order[0] = -1 where the constraints have a cycle."""
+    order = vec_seed_i()
+    placed = int(0)
+    for step in range(count):
+        pick = int(-1)
+        for k in range(count):
+            if pick < 0 and ((placed >> k) & 1) == 0 and (prec[k] & ~placed) == 0:
+                pick = k
+        if pick < 0:
+            order[0] = -1
+            return order
+        order[step] = pick
+        placed = placed | (1 << pick)
+    return order
+
+
+@wp.func
+def raster_correction(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    hu: float,
+    hv: float,
+    weight: float,
+) -> vec_seed_f:
+    """On RASTER x RASTER points of the cell (as the sub-points), ``weight`` per point from the first seed whose disk
+    holds it (whom the clip gave it) to the seed whose surface comes first there, where they differ."""
+    corr = vec_seed_f()
+    su = hu / float(RASTER)
+    sv = hv / float(RASTER)
+    for k in range(RASTER):
+        tx = (float(k) + 0.5) * su
+        for kv in range(RASTER):
+            ty = (float(kv) + 0.5) * sv
+            won, holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
+            if won != holder:
+                corr[won] = corr[won] + weight
+                corr[holder] = corr[holder] - weight
+    return corr
 
 
 @wp.kernel
@@ -349,6 +538,7 @@ def area_cells(
         okeys = vec_seed_k()
         ox = vec_seed_f()
         oy = vec_seed_f()
+        oz = vec_seed_f()
         rr = vec_seed_f()
         count = int(0)
         for m in range(4 * d + 8):
@@ -407,6 +597,7 @@ def area_cells(
                     ids[pos] = ids[pos - 1]
                     ox[pos] = ox[pos - 1]
                     oy[pos] = oy[pos - 1]
+                    oz[pos] = oz[pos - 1]
                     rr[pos] = rr[pos - 1]
                     pos -= 1
                 else:
@@ -415,33 +606,79 @@ def area_cells(
             ids[pos] = pid
             ox[pos] = cx
             oy[pos] = cy
+            oz[pos] = depth
             rr[pos] = r
             count += 1
         # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
-        # larger, or behind the first seed whose disk holds all four corners (it holds the whole cell).
+        # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), a sphere
+        # that does not reach into that one (its surface is behind that one's everywhere in the cell).
         kept = int(0)
+        full = int(-1)
         for k in range(count):
             drop = int(0)
             for k2 in range(kept):
                 if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
                     drop = 1
+            if drop == 0 and full >= 0:
+                fx = ox[k] - ox[full]
+                fy = oy[k] - oy[full]
+                fz = oz[k] - oz[full]
+                fr = rr[k] + rr[full]
+                if fx * fx + fy * fy + fz * fz >= fr * fr:
+                    drop = 1
             if drop == 0:
                 ids[kept] = ids[k]
                 ox[kept] = ox[k]
                 oy[kept] = oy[k]
+                oz[kept] = oz[k]
                 rr[kept] = rr[k]
+                if full < 0 and holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
+                    full = kept
                 kept += 1
-                if holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
-                    break
         count = kept
         shares = vec_seed_f()
         if count > 0:
             if resolver == RESOLVER_SUBPOINTS:
-                shares = subpoint_shares(ox, oy, rr, count, hu, hv, subpoints)
+                shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints)
             else:
+                # The clip's order: the surface order wherever it holds on the whole cell; else the raster decides.
+                prec = vec_seed_i()
+                undecided = int(0)
+                for k1 in range(1, count):
+                    for k0 in range(k1):
+                        rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
+                        if rel == REL_KEEP:
+                            prec[k1] = prec[k1] | (1 << k0)
+                        elif rel == REL_SWAP:
+                            prec[k0] = prec[k0] | (1 << k1)
+                        elif rel == REL_UNDECIDED:
+                            undecided = 1
+                order = topo_order(prec, count)
+                if order[0] < 0:
+                    undecided = 1
+                else:
+                    ids_c = ids
+                    ox_c = ox
+                    oy_c = oy
+                    oz_c = oz
+                    rr_c = rr
+                    full_c = full
+                    for k in range(count):
+                        o = order[k]
+                        ids[k] = ids_c[o]
+                        ox[k] = ox_c[o]
+                        oy[k] = oy_c[o]
+                        oz[k] = oz_c[o]
+                        rr[k] = rr_c[o]
+                        if o == full_c:
+                            full = k
                 areas = exact_areas(ox, oy, rr, count, hu, hv)
                 for k in range(count):
                     shares[k] = areas[k] / (hu * hv) * float(unit)
+                if undecided != 0:
+                    corr = raster_correction(ox, oy, oz, rr, full, count, hu, hv, float(unit) / float(RASTER * RASTER))
+                    for k in range(count):
+                        shares[k] = wp.max(shares[k] + corr[k], 0.0)
         total = float(0.0)
         for k in range(count):
             total += shares[k]
