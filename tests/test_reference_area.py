@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from helpers import first_surface_raster, raster_tolerance, raster_visible_areas
 
 import warp_lamp as wl
 from warp_lamp.reference.area import (
@@ -61,37 +62,6 @@ def lens_area(r1, r2, d):
     a1 = np.arccos((d * d + r1 * r1 - r2 * r2) / (2 * d * r1))
     a2 = np.arccos((d * d + r2 * r2 - r1 * r1) / (2 * d * r2))
     return r1 * r1 * (a1 - 0.5 * np.sin(2 * a1)) + r2 * r2 * (a2 - 0.5 * np.sin(2 * a2))
-
-
-def first_surface_raster(centers, radii, rect, n):
-    """Visible areas by brute force: an n x n raster of rays over ``rect`` along the third coordinate (from
-    -infinity), each ray's pixel to the sphere with the smallest entry depth z - sqrt(r^2 - d^2), ties to the
-    lower index (a z-buffer filled sphere by sphere over its bounding box); also the pixel side. Independent of
-    the references: no ordering, no clipping."""
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float64)
-    x0, y0, x1, y1 = rect
-    hx, hy = (x1 - x0) / n, (y1 - y0) / n
-    best = np.full((n, n), np.inf)
-    who = np.full((n, n), len(r))
-    for k in range(len(r)):
-        i0, i1 = (int(np.clip(np.floor((c[k, 0] + s * r[k] - x0) / hx), 0, n)) for s in (-1, 1))
-        j0, j1 = (int(np.clip(np.floor((c[k, 1] + s * r[k] - y0) / hy), 0, n)) for s in (-1, 1))
-        xs = x0 + (np.arange(i0, min(i1 + 1, n)) + 0.5) * hx
-        ys = y0 + (np.arange(j0, min(j1 + 1, n)) + 0.5) * hy
-        s2 = r[k] ** 2 - (xs[:, None] - c[k, 0]) ** 2 - (ys[None, :] - c[k, 1]) ** 2
-        depth = np.where(s2 >= 0, c[k, 2] - np.sqrt(np.maximum(s2, 0.0)), np.inf)
-        window = (slice(i0, i0 + len(xs)), slice(j0, j0 + len(ys)))
-        better = depth < best[window]
-        best[window] = np.where(better, depth, best[window])
-        who[window] = np.where(better, k, who[window])
-    return np.bincount(who.ravel(), minlength=len(r) + 1)[: len(r)] * hx * hy, max(hx, hy)
-
-
-def raster_tolerance(radii, pixel):
-    """A raster's error bound on one sphere's area: half a pixel along its whole outline (generous: the errors of
-    the pixels along a boundary are of either sign)."""
-    return 0.5 * pixel * 2 * PI * np.asarray(radii)
 
 
 # --- the planar core --------------------------------------------------------------------------------------
@@ -461,23 +431,11 @@ def test_visible_area_reference_on_an_overlapping_packing_matches_a_raster():
     visible area from every lamp is a 384-rays-per-diameter first-surface raster's to within its error bound,
     and the RMS difference is below 1.5e-4 of a mean disk (measured 5e-5, mostly the raster's); by centre depth
     (the reference before issue 19) the RMS difference is over 20 times that."""
-    s = scene_overlapping_polydisperse(120)
+    s = scene_overlapping_polydisperse(100)
     c, r = s.centers, s.radii
     a = visible_area_reference(c, r)
-    lo, hi = (c - r[:, None]).min(axis=0), (c + r[:, None]).max(axis=0)
-    n = int(np.ceil((hi - lo).max() / (2 * r.mean()) * 384))
-    ras = np.zeros_like(a)
-    by_centre = np.zeros_like(a)
-    for lamp in range(6):
-        ax, side = divmod(lamp, 2)
-        u, v = (ax + 1) % 3, (ax + 2) % 3
-        depth = c[:, ax] if side == 0 else -c[:, ax]
-        view = np.column_stack([c[:, u], c[:, v], depth])
-        ras[:, lamp], pixel = first_surface_raster(
-            view, r, (lo[u], lo[v], lo[u] + (hi - lo).max(), lo[v] + (hi - lo).max()), n
-        )
-        order = np.lexsort((np.arange(len(r)), depth))
-        by_centre[order, lamp] = visible_disk_areas(view[order, :2], r[order], (lo[u], lo[v], hi[u], hi[v]))
+    ras, pixel = raster_visible_areas(c, r, 384)
+    by_centre, _ = raster_visible_areas(c, r, 384, by_centre=True)
     disk = PI * r.mean() ** 2
     assert np.all(np.abs(a - ras) <= raster_tolerance(r, pixel)[:, None])
     rms = np.sqrt(np.mean((a - ras) ** 2)) / disk
