@@ -1,4 +1,4 @@
-"""Per-cell kernel of the lamp's visible-area criterion (issues 15 and 19): gather, order, resolve, balance, scatter.
+"""Per-cell kernel of the lamp's visible-area criterion (issues 15, 19): gather, order, resolve, balance, scatter.
 
 One thread per cell of the three grids handles both lamps of its cell. It reads the D-slot keys the depth pass
 left at the cell's sample rays (the cell corners) and does, in this order, exactly what
@@ -7,16 +7,19 @@ left at the cell's sample rays (the cell corners) and does, in this order, exact
 1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
    when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``; then cull those
    that cannot be first anywhere in the cell;
-2. resolve each seed's share of the cell: every point goes to the seed whose *surface* the ray meets first there
-   (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`).
-   Sub-points: S x S points, each decided by its surface depths. Exact: the seeds are put in an order that is the
-   surface order on the whole cell wherever one exists (:func:`pair_relation`, :func:`topo_order`), and clipped
-   as circle arcs front to back (:func:`exact_areas`); in a cell where two intersecting spheres' visible boundary
-   (the projection of their intersection circle, an ellipse) may cross, a ``RASTER`` x ``RASTER`` raster of surface
-   depths moves the units between the seeds where the clip's order is wrong (:func:`raster_correction`);
-3. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
+2. order the seeds for the cell: every pair whose disks overlap is ordered by which surface a ray meets first
+   (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`) where that order
+   holds on the whole cell (:func:`pair_relation`), and the seeds are put in a sequence that keeps every such
+   pair (:func:`topo_order`). The cell is *undecided* where a pair's order may change inside it (the projection
+   of two intersecting spheres' intersection circle, an ellipse, may cross it) or no sequence exists;
+3. resolve each seed's share of the cell, every point to the seed whose surface its ray meets first.
+   Sub-points: S x S points, each to the first seed whose disk holds it, or, in an undecided cell, by its surface
+   depths (:func:`first_surface`). Exact: circle arcs clipped front to back in the sequence
+   (:func:`exact_areas`); in an undecided cell a ``RASTER`` x ``RASTER`` raster of surface depths moves units
+   between the seeds where the clip's sequence is wrong (:func:`raster_correction`);
+4. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
    share;
-4. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
+5. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
 
 Key layout (the depth pass's output): grid a has (n_u + 1) x (n_v + 1) samples, row-major (j (n_u + 1) + i) from
 ``sample_offset[a]``; sample s holds ``2 D`` keys at ``keys[(2 s + side) D + k]``, k = 0 .. D-1 ascending,
@@ -30,8 +33,9 @@ Everything is fixed-size local storage; nothing allocates. A cell with more than
 ones and counts itself in ``diag[DIAG_OVERFLOW]``; a cell one lamp cannot pay out counts in ``diag[DIAG_ONE_SIDED]``.
 
 Candidates are spheres. A later kind (a planar occluder, whose depth is linear across the cell) enters through
-:func:`surface_depth` alone for the sub-points and the raster, and as a pair relation that is always undecided for
-the exact clip, which then leaves the decision to the raster.
+:func:`surface_depth` and :func:`first_holder` for the points, and through :func:`pair_relation` as a pair that is
+undecided wherever the plane may cut a sphere's surface inside the cell, which sends that cell to the per-point
+surface depths (sub-points) or the raster (exact); the clip itself only ever sees disks.
 """
 
 import warp as wp
@@ -318,19 +322,42 @@ def first_surface(
     ty: wp.float32,
 ):
     """(the seed whose surface the ray at (tx, ty) meets first, ties to the earlier seed; the first seed whose disk
-    holds the point), each ``count`` where none does. Seed ``full`` holds every point."""
+    holds the point), each ``count`` where none does. Seed ``full`` holds every point. Depths are only computed
+    where a second seed holds the point (the same answer: the first holder wins unless another comes first)."""
     best = count
     holder = count
     depth = MISS
     for m in range(count):
-        dm = surface_depth(ox[m], oy[m], oz[m], rr[m], wp.where(m == full, 1, 0), tx, ty)
-        if dm < MISS:
+        dx = tx - ox[m]
+        dy = ty - oy[m]
+        if m == full or dx * dx + dy * dy <= rr[m] * rr[m]:
             if holder == count:
                 holder = m
-            if dm < depth:
-                depth = dm
                 best = m
+            else:
+                if depth == MISS:
+                    depth = surface_depth(ox[best], oy[best], oz[best], rr[best], 1, tx, ty)
+                dm = surface_depth(ox[m], oy[m], oz[m], rr[m], 1, tx, ty)
+                if dm < depth:
+                    depth = dm
+                    best = m
     return best, holder
+
+
+@wp.func
+def first_holder(
+    ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, full: wp.int32, count: wp.int32, tx: wp.float32, ty: wp.float32
+) -> wp.int32:
+    """The first seed whose disk holds the point (tx, ty), ``count`` where none does; seed ``full`` holds every
+    point. Where the seeds are in the surface order for the whole cell, it is the seed whose surface comes first."""
+    for m in range(count):
+        if m == full:
+            return m
+        dx = tx - ox[m]
+        dy = ty - oy[m]
+        if dx * dx + dy * dy <= rr[m] * rr[m]:
+            return m
+    return count
 
 
 @wp.func
@@ -344,10 +371,12 @@ def subpoint_shares(
     hu: float,
     hv: float,
     s: int,
+    undecided: wp.int32,
 ):
     """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the seed whose surface
-    its ray meets first (float32, each product and sum rounded: the reference repeats it bitwise); seed ``full``
-    holds every point. ``count`` >= 1."""
+    its ray meets first: the first seed whose disk holds it where the seeds are in the surface order for the whole
+    cell, else by its surface depths (``undecided``). Float32, each product and sum rounded: the reference repeats
+    it bitwise. Seed ``full`` holds every point. ``count`` >= 1."""
     shares = vec_seed_f()
     if count == 1 and full == 0:
         shares[0] = float(s * s)
@@ -358,7 +387,11 @@ def subpoint_shares(
         tx = (float(k) + 0.5) * su
         for kv in range(s):
             ty = (float(kv) + 0.5) * sv
-            won, _holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
+            won = count
+            if undecided != 0:
+                won, _holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
+            else:
+                won = first_holder(ox, oy, rr, full, count, tx, ty)
             if won < count:
                 shares[won] = shares[won] + 1.0
     return shares
@@ -384,10 +417,11 @@ def pair_relation(
 
     l's surface can come first where both disks hold a point only where e's chord along the ray lies inside l's
     (else e enters first: its chord's midpoint, the centre depth, comes first). That region of e's disk is bounded
-    by e's outline and by the projection of the spheres' intersection circle, an ellipse; so where the ellipse
-    misses the cell (its bounding box misses it, or all four corners lie inside it), one answer holds on the whole
-    of e's disk in the cell, read at its point nearest e's centre. Disjoint spheres keep e first; a sphere inside
-    the other is behind it everywhere. Float32 (the reference repeats it bitwise).
+    by e's outline and by the projection of the points of the spheres' intersection circle where both chords
+    begin or both end: those in front of both centres or behind both. So where the circle has no such point, or
+    its projection (an ellipse) misses the cell (its bounding box misses it, or all four corners lie inside it),
+    one answer holds on the whole of e's disk in the cell, read at its point nearest e's centre. Disjoint spheres
+    keep e first; a sphere inside the other is behind it everywhere. Float32 (the reference repeats it bitwise).
     """
     dx = xl - xe
     dy = yl - ye
@@ -411,9 +445,14 @@ def pair_relation(
     rho2 = wp.max(re2 - t * t * d2, 0.0)
     mu = xe + t * dx
     mv = ye + t * dy
+    ma = ze + t * dz
     bu = wp.sqrt(rho2 * (dy * dy + dz * dz) / d2)
     bv = wp.sqrt(rho2 * (dx * dx + dz * dz) / d2)
-    if mu - bu <= hu and mu + bu >= 0.0 and mv - bv <= hv and mv + bv >= 0.0:
+    ba = wp.sqrt(rho2 * (dx * dx + dy * dy) / d2)
+    # Only points of the circle in front of both centres or behind both bound the region; and only if the
+    # ellipse's bounding box meets the cell.
+    flips = (ma - ba < ze or ma + ba > zl) and mu - bu <= hu and mu + bu >= 0.0 and mv - bv <= hv and mv + bv >= 0.0
+    if flips:
         # Inside the ellipse: dz^2 |q - m|^2 + ((dx, dy) . (q - m))^2 < dz^2 rho2.
         inside = int(1)
         for corner in range(4):
@@ -610,8 +649,9 @@ def area_cells(
             rr[pos] = r
             count += 1
         # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
-        # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), a sphere
-        # that does not reach into that one (its surface is behind that one's everywhere in the cell).
+        # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), one whose
+        # surface is behind that one's on the whole cell (pair_relation: disjoint spheres, nested, or chords
+        # never holding that one's there).
         kept = int(0)
         full = int(-1)
         for k in range(count):
@@ -620,11 +660,8 @@ def area_cells(
                 if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
                     drop = 1
             if drop == 0 and full >= 0:
-                fx = ox[k] - ox[full]
-                fy = oy[k] - oy[full]
-                fz = oz[k] - oz[full]
-                fr = rr[k] + rr[full]
-                if fx * fx + fy * fy + fz * fz >= fr * fr:
+                rel = pair_relation(ox[full], oy[full], oz[full], rr[full], ox[k], oy[k], oz[k], rr[k], hu, hv)
+                if rel == REL_KEEP or rel == REL_APART:
                     drop = 1
             if drop == 0:
                 ids[kept] = ids[k]
@@ -637,41 +674,43 @@ def area_cells(
                 kept += 1
         count = kept
         shares = vec_seed_f()
+        # The seeds' order: the surface order wherever it holds on the whole cell; else each point's surface
+        # depths decide (sub-points), or the raster corrects the clip (exact).
+        undecided = int(0)
+        if count > 1:
+            prec = vec_seed_i()
+            for k1 in range(1, count):
+                for k0 in range(k1):
+                    rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
+                    if rel == REL_KEEP:
+                        prec[k1] = prec[k1] | (1 << k0)
+                    elif rel == REL_SWAP:
+                        prec[k0] = prec[k0] | (1 << k1)
+                    elif rel == REL_UNDECIDED:
+                        undecided = 1
+            order = topo_order(prec, count)
+            if order[0] < 0:
+                undecided = 1
+            else:
+                ids_c = ids
+                ox_c = ox
+                oy_c = oy
+                oz_c = oz
+                rr_c = rr
+                full_c = full
+                for k in range(count):
+                    o = order[k]
+                    ids[k] = ids_c[o]
+                    ox[k] = ox_c[o]
+                    oy[k] = oy_c[o]
+                    oz[k] = oz_c[o]
+                    rr[k] = rr_c[o]
+                    if o == full_c:
+                        full = k
         if count > 0:
             if resolver == RESOLVER_SUBPOINTS:
-                shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints)
+                shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints, undecided)
             else:
-                # The clip's order: the surface order wherever it holds on the whole cell; else the raster decides.
-                prec = vec_seed_i()
-                undecided = int(0)
-                for k1 in range(1, count):
-                    for k0 in range(k1):
-                        rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
-                        if rel == REL_KEEP:
-                            prec[k1] = prec[k1] | (1 << k0)
-                        elif rel == REL_SWAP:
-                            prec[k0] = prec[k0] | (1 << k1)
-                        elif rel == REL_UNDECIDED:
-                            undecided = 1
-                order = topo_order(prec, count)
-                if order[0] < 0:
-                    undecided = 1
-                else:
-                    ids_c = ids
-                    ox_c = ox
-                    oy_c = oy
-                    oz_c = oz
-                    rr_c = rr
-                    full_c = full
-                    for k in range(count):
-                        o = order[k]
-                        ids[k] = ids_c[o]
-                        ox[k] = ox_c[o]
-                        oy[k] = oy_c[o]
-                        oz[k] = oz_c[o]
-                        rr[k] = rr_c[o]
-                        if o == full_c:
-                            full = k
                 areas = exact_areas(ox, oy, rr, count, hu, hv)
                 for k in range(count):
                     shares[k] = areas[k] / (hu * hv) * float(unit)

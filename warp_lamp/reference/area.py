@@ -268,7 +268,8 @@ def _pair_relations64(x, y, z, r, ok, w, h):
         rd = re - rl
         t = (d2 + re * re - rl * rl) / (2.0 * d2)
         rho2 = np.maximum(re * re - t * t * d2, 0.0)
-        meets = _ellipse_meets(dx, dy, dz, xe + t * dx, ye + t * dy, rho2, ww, hh)
+        ma, ba = ze + t * dz, np.sqrt(rho2 * dp / d2)
+        meets = ((ma - ba < ze) | (ma + ba > zl)) & _ellipse_meets(dx, dy, dz, xe + t * dx, ye + t * dy, rho2, ww, hh)
         qx = np.clip(xe, 0.0, ww)
         qy = np.clip(ye, 0.0, hh)
         dl = (qx - xl) ** 2 + (qy - yl) ** 2
@@ -807,10 +808,10 @@ def _holds_corners(ox, oy, rr, hu, hv):
 def _cull(seeds, q, r, a, cu, cv, hu, hv, nu, side):
     """Drop seeds that can win nothing, keeping the order, one seed at a time as the kernel does: a seed concentric
     with a kept earlier one (the same float32 cell-relative centre) and not larger; and, once a kept seed's disk
-    holds all four cell corners (the first such seed, ``full``), every later seed whose ball does not reach into
-    that one's (float32 ``dx dx + dy dy + dz dz >= (r + r_full)^2``): along every ray of the cell its chord then
-    lies wholly behind the full seed's, which comes first by centre depth. Returns (seeds (C, K') -1 padded, the
-    full seed's position in them (C,), -1 where none)."""
+    holds all four cell corners (the first such seed, ``full``), every later seed whose surface is behind full's
+    on the whole cell (:func:`_pair_relations` of the two: REL_KEEP, or REL_APART): full holds every point of
+    the cell, so such a seed is first nowhere. Returns (seeds (C, K') -1 padded, the full seed's position in
+    them (C,), -1 where none)."""
     C, K = seeds.shape
     ox, oy, oz, rr, ok = _geometry(seeds, np.arange(C), q, r, a, cu, cv, hu, hv, nu, side)
     holds = _holds_corners(ox, oy, rr, hu, hv)
@@ -824,11 +825,9 @@ def _cull(seeds, q, r, a, cu, cv, hu, hv, nu, side):
         slot = np.arange(K)[None, :] < kept[:, None]
         drop = (slot & (kx == x[:, None]) & (ky == y[:, None]) & (rad[:, None] <= kr)).any(axis=1)
         f = np.maximum(full, 0)
-        fx = x - kx[rows, f]
-        fy = y - ky[rows, f]
-        fz = z - kz[rows, f]
-        fr = rad + kr[rows, f]
-        drop |= (full >= 0) & (fx * fx + fy * fy + fz * fz >= fr * fr)
+        pair = [np.stack([kept_f[rows, f], now], axis=1) for kept_f, now in ((kx, x), (ky, y), (kz, z), (kr, rad))]
+        rel = _pair_relations(*pair, np.ones((C, 2), dtype=bool), hu, hv)[:, 0, 1]
+        drop |= (full >= 0) & ((rel == REL_KEEP) | (rel == REL_APART))
         keep = ok[:, k] & ~drop
         w = rows[keep]
         out[w, kept[w]] = seeds[w, k]
@@ -852,7 +851,8 @@ def _pair_relations(ox, oy, oz, rr, ok, hu, hv):
 
     Why one answer holds where the ellipse misses the cell: k1's surface comes first at a point only where k0's
     chord along the ray lies inside k1's (otherwise k0 enters first, its chord's midpoint, the centre depth,
-    coming first); that region of k0's disk is bounded by k0's outline and the projected intersection circle.
+    coming first); that region of k0's disk is bounded by k0's outline and the projection of the intersection
+    circle's points in front of both centres or behind both (where both chords begin, or both end, together).
     """
     f32 = np.float32
     xe, ye, ze, re = (x[:, :, None] for x in (ox, oy, oz, rr))
@@ -871,9 +871,12 @@ def _pair_relations(ox, oy, oz, rr, ok, hu, hv):
         rho2 = np.maximum(re2 - t * t * d2, f32(0))
         mu = xe + t * dx
         mv = ye + t * dy
+        ma = ze + t * dz
         bu = np.sqrt(rho2 * (dy * dy + dz * dz) / d2)
         bv = np.sqrt(rho2 * (dx * dx + dz * dz) / d2)
-        box = (mu - bu <= hu) & (mu + bu >= f32(0)) & (mv - bv <= hv) & (mv + bv >= f32(0))
+        ba = np.sqrt(rho2 * (dx * dx + dy * dy) / d2)
+        box = ((ma - ba < ze) | (ma + ba > zl)) & (mu - bu <= hu) & (mu + bu >= f32(0))
+        box &= (mv - bv <= hv) & (mv + bv >= f32(0))
         inside = np.ones(box.shape, dtype=bool)
         for x, y in ((0, 0), (hu, 0), (0, hv), (hu, hv)):
             du = f32(x) - mu
@@ -952,7 +955,7 @@ def _points(n, h):
 
 def _resolve(seeds, full, cells, q, r, a, cu, cv, hu, hv, nu, side, resolver, subpoints, unit):
     """Each seed's share of its cell in units, float64 (exact) or integer-valued (sub-points), shape (M, K), and
-    the seeds in the order the shares are given (the exact resolver's clip order)."""
+    the seeds in the order the shares are given (the sequence of :func:`_surface_order`)."""
     ox, oy, oz, rr, ok = _geometry(seeds, cells, q, r, a, cu, cv, hu, hv, nu, side)
     out = np.zeros(seeds.shape)
     seeds = seeds.copy()
@@ -963,12 +966,12 @@ def _resolve(seeds, full, cells, q, r, a, cu, cv, hu, hv, nu, side, resolver, su
         x, y, z, rad, good, f = ox[sl], oy[sl], oz[sl], rr[sl], ok[sl], full[sl]
         m = len(x)
         rows = np.arange(m)
+        order, undecided = _surface_order(_pair_relations(x, y, z, rad, good, hu, hv), good)
+        x, y, z, rad = (np.take_along_axis(v, order, axis=1) for v in (x, y, z, rad))
+        seeds[sl] = np.take_along_axis(seeds[sl], order, axis=1)
+        moved = np.argsort(order, axis=1)  # new position of each old one
+        f = np.where(f >= 0, moved[rows, np.maximum(f, 0)], -1)
         if resolver == "exact":
-            order, undecided = _surface_order(_pair_relations(x, y, z, rad, good, hu, hv), good)
-            x, y, z, rad = (np.take_along_axis(v, order, axis=1) for v in (x, y, z, rad))
-            seeds[sl] = np.take_along_axis(seeds[sl], order, axis=1)
-            moved = np.argsort(order, axis=1)  # new position of each old one
-            f = np.where(f >= 0, moved[rows, np.maximum(f, 0)], -1)
             area = _visible_batch(x, y, rad, np.full(m, float(hu)), np.full(m, float(hv)))
             share = area / (float(hu) * float(hv)) * unit
             fix = np.flatnonzero(undecided)
@@ -978,7 +981,8 @@ def _resolve(seeds, full, cells, q, r, a, cu, cv, hu, hv, nu, side, resolver, su
             out[sl] = share
         else:
             t_u, t_v = _points(subpoints, hu), _points(subpoints, hv)
-            won, _ = _first_surface(x, y, z, rad, f, np.repeat(t_u, subpoints), np.tile(t_v, subpoints))
+            won, holder = _first_surface(x, y, z, rad, f, np.repeat(t_u, subpoints), np.tile(t_v, subpoints))
+            won = np.where(undecided[:, None], won, holder)
             counts = np.zeros((m, k + 1))
             np.add.at(counts, (np.repeat(rows, won.shape[1]), won.ravel()), 1.0)
             out[sl] = counts[:, :k]
@@ -1051,24 +1055,26 @@ def area_estimate_reference(
        dropped (:func:`_cull`): one concentric with a kept earlier seed (bitwise the same float32 ``o``) and
        not larger (``r <= r_earlier``); and, after the first kept seed whose disk holds all four cell corners
        (``full``; each corner tested as ``dx dx + dy dy <= r r`` in float32 with ``dx = f32(corner_x) - o_x``),
-       every seed whose ball does not reach into full's, ``dx dx + dy dy + dz dz >= (r + r_full)^2`` in float32
-       (z the depth along the lamp: ``p_a``, or ``-p_a`` for the high lamp).
+       every seed that full comes before on the whole cell (the pair relation of step 3, with z the depth along
+       the lamp: ``p_a``, or ``-p_a`` for the high lamp).
     3. **Resolve**: each point of the cell goes to the seed whose surface its ray meets first, at depth
        ``z - sqrt(max(r r - d d, 0))`` (the entry point; for the high lamp, with z = -p_a, the exit point), the
        earlier seed on ties; ``full`` holds every point.
+       First every pair of seeds whose disks overlap gets an order for the cell (:func:`_pair_relations`,
+       float32): the earlier first, the later first, or undecided where the order may change inside the cell
+       (the projection of the two spheres' intersection circle may cross it); the seeds are put in the first
+       sequence (lowest index first) that keeps every decided pair (:func:`_surface_order`), and listed in it
+       from then on; a cell with an undecided pair or no such sequence is *undecided*.
        ``"subpoints"``: S x S points at ``t_k = (f32(k) + 0.5) * (h_u / f32(S))``, ``t_l`` likewise with h_v,
-       k, l = 0 .. S-1; a point is held when ``(t_k - o_x)^2 + (t_l - o_y)^2 <= r^2`` and its depth computed,
-       in float32 (each product and sum rounded, no FMA; :func:`_first_surface`); share = points won;
-       unit = S^2, so nothing is rounded.
-       ``"exact"``: every pair of seeds whose disks overlap gets an order for the cell (:func:`_pair_relations`,
-       float32): the earlier first, the later first, or undecided where the projection of the two spheres'
-       intersection circle may cross the cell; the seeds are then put in the first order (lowest index first)
-       that keeps every decided pair (:func:`_surface_order`), and :func:`visible_disk_areas` on them in
-       float64 (inputs the float32 values above) gives share = area / (h_u h_v) * :data:`EXACT_UNIT`. In a cell
-       with an undecided pair or no such order, a :data:`RASTER` x :data:`RASTER` raster (the sub-point rule
-       with S = RASTER) moves one unit per point from the first seed whose disk holds it to the seed whose
-       surface comes first there, where they differ, and shares below zero become zero
-       (:func:`_raster_correction`). The seeds are listed in the clip's order from then on.
+       k, l = 0 .. S-1; a point is held when ``(t_k - o_x)^2 + (t_l - o_y)^2 <= r^2`` in float32 (each product
+       and sum rounded, no FMA); it goes to the first seed in the sequence that holds it, or, in an undecided
+       cell, to the holder of least surface depth (:func:`_first_surface`); share = points won; unit = S^2, so
+       nothing is rounded.
+       ``"exact"``: :func:`visible_disk_areas` on the seeds in sequence, in float64 (inputs the float32 values
+       above), gives share = area / (h_u h_v) * :data:`EXACT_UNIT`. In an undecided cell a :data:`RASTER` x
+       :data:`RASTER` raster (the sub-point rule with S = RASTER) moves one unit per point from the first seed
+       whose disk holds it to the seed whose surface comes first there, where they differ, and shares below zero
+       become zero (:func:`_raster_correction`).
     4. **Balance**: each lamp's total is its shares' sum rounded half up (exact sub-point counts are already
        integers); both lamps of the cell distribute T = the larger of the two totals. A lamp with seeds shares
        T by ``floor(T share_k / sum(share))`` and gives the remainder to its largest share (the first, front to
