@@ -12,6 +12,7 @@ from warp_lamp.reference.area import (
     area_estimate_reference,
     visible_area_reference,
     visible_disk_areas,
+    visible_sphere_areas,
 )
 from warp_lamp.reference.lamp import EPS32, LampReference, lamp_reference
 from warp_lamp.reference.porosity import (
@@ -39,4 +40,5 @@ __all__ = [
     "sphere_box_volume",
     "visible_area_reference",
     "visible_disk_areas",
+    "visible_sphere_areas",
 ]
