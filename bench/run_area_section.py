@@ -31,7 +31,9 @@ def main():
     repeats = args.repeats or (50 if device.is_cuda else 5)
     c1 = (2, 4, 8, 16, 32) if device.is_cuda else (2, 4, 8, 16)
     t0 = time.perf_counter()
-    sec = section_area(device, repeats=repeats, criterion1_cpd=c1, large=(100,) if args.large else ())
+    sec = section_area(
+        device, repeats=repeats, criterion1_cpd=c1, overlap=True, lone_samples=64, large=(100,) if args.large else ()
+    )
     sec["seconds"] = time.perf_counter() - t0
     sec["machine"] = {"platform": platform.platform(), "device": device.name, "alias": device.alias}
     text = format_modes({"area": [sec]})

@@ -279,9 +279,9 @@ def section_area(
     criterion1_cpd=(2, 4, 8, 16, 32),
     area_cpd=(2, 3, 4),
     estimators=AREA_ESTIMATORS,
-    overlap: Scene | bool | None = None,
+    overlap: Scene | bool = False,
     overlap_cpd=(3, 4),
-    lone_samples: int = 64,
+    lone_samples: int = 0,
     large=(),
     bar: Progress | None = None,
 ) -> dict:
@@ -297,8 +297,8 @@ def section_area(
         criterion1_cpd: Resolutions of criterion 1 [cells per mean diameter]; 4 is the reference of ``ratio``.
         area_cpd: Resolutions of the area criterion.
         estimators: ``(resolver, depth_slots)`` pairs of the area criterion (8 x 8 sub-points).
-        overlap: The overlapping body of issue 19 (:func:`~warp_lamp.scenes.scene_overlapping_polydisperse` by
-            default; False: none), measured as the specimen at ``overlap_cpd`` (error only, not timed).
+        overlap: The overlapping body of issue 19, measured as the specimen at ``overlap_cpd`` (error only, not
+            timed): a scene, True for :func:`~warp_lamp.scenes.scene_overlapping_polydisperse`, False for none.
         overlap_cpd: Resolutions of the overlapping body.
         lone_samples: Random offsets of the lone sphere per resolver and resolution (0: none).
         large: Lattice sizes per axis (the 1M box: 100) whose update at cell 0.25 is timed for criterion 1 and
@@ -345,7 +345,7 @@ def section_area(
     out = {"scene": specimen.name, "n": specimen.n, "mean_radius": rbar, "reference_s": ref_s, "rows": rows}
     out["overlap"] = []
     if overlap is not False:
-        body = scene_overlapping_polydisperse() if overlap is None or overlap is True else overlap
+        body = scene_overlapping_polydisperse() if overlap is True else overlap
         exact_o, ref_o = exact_areas(body)
         out.update(overlap_scene=body.name, overlap_n=body.n, overlap_reference_s=ref_o)
         for k in overlap_cpd:
@@ -560,7 +560,14 @@ def bench_modes(devices=None, *, quick: bool = False, progress: bool = True, rep
         out["small_body"] += section_small_body(device, repeats=reps, specimen=specimen, large=large, bar=bar)
         out["area"].append(
             section_area(
-                device, repeats=reps, specimen=specimen, criterion1_cpd=c1, large=(100,) if big else (), bar=bar
+                device,
+                repeats=reps,
+                specimen=specimen,
+                criterion1_cpd=c1,
+                overlap=scene_overlapping_polydisperse(300 if quick else 1000),
+                lone_samples=16 if quick else 64,
+                large=(100,) if big else (),
+                bar=bar,
             )
         )
         out["wetted"] += section_wetted(device, repeats=reps, specimen=specimen, large=(100,) if big else (), bar=bar)

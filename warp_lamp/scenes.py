@@ -329,7 +329,8 @@ def scene_overlapping_polydisperse(
         mean_radius: Mean radius [m].
         ratio: Rmax / Rmin.
         max_overlap: Largest overlap, as a fraction of the smaller radius of the pair.
-        solid_fraction: Summed sphere volume over the ball's volume (0.6 places in about 3 s; 0.7 takes minutes).
+        solid_fraction: Summed sphere volume over the ball's volume (0.6 places 1,000 spheres in about 3 s; 0.7
+            takes minutes; below about 80 spheres the wall leaves too little room at 0.6).
         seed: Random seed.
     """
     rng = np.random.default_rng(seed)
