@@ -3,10 +3,12 @@
 import numpy as np
 import pytest
 import warp as wp
-from helpers import device_arrays, polydisperse_scene
+from helpers import device_arrays, first_surface_raster, polydisperse_scene, raster_visible_areas
 
 import warp_lamp as wl
+from warp_lamp.measures import visible_area_error
 from warp_lamp.reference import area_depth_slots, area_estimate_reference, visible_area_reference
+from warp_lamp.scenes import scene_overlapping_polydisperse
 
 
 def area_lamp(centers, radii, device, **options):
@@ -135,3 +137,50 @@ def test_cpu_and_cuda_bitwise_equal_for_subpoints(cuda_device, rng):
         gpu = area_lamp(c, r, cuda_device, cells_per_diameter=3)
         np.testing.assert_array_equal(cpu.keys.numpy(), gpu.keys.numpy())
         np.testing.assert_array_equal(cpu.counts_numpy(), gpu.counts_numpy())
+
+
+# --- overlapping spheres (issue 19) -------------------------------------------------------------------------
+
+
+def test_nested_sphere_gets_no_force(device):
+    """The issue's example: a sphere wholly inside another (r = 0.1 at x = 0.2 in r = 0.5), lamp +x alone: it took
+    0.93 of its disk by centre depth; now nothing, with either resolver, and the big one its whole disk."""
+    for resolver in ("exact", "subpoints"):
+        f = wl.lamp_forces(
+            [[0, 0, 0], [0.2, 0, 0]], [0.5, 0.1], 1.0, criterion="area", lamps=["+x"], resolver=resolver, device=device
+        )
+        assert np.all(f[1] == 0.0)
+        assert f[0, 0] == pytest.approx(-np.pi * 0.25, rel=2e-3 if resolver == "exact" else 5e-3)
+
+
+@pytest.mark.parametrize("resolver", ["exact", "subpoints"])
+def test_two_overlapping_unequal_spheres(device, resolver):
+    """The issue's example: centres (0, 0, 0) and (0.45, 0.05, 0), radii 0.5 and 0.15; the small sphere's load from
+    -y and from +y equals its visible area by a 2048 x 2048 first-surface raster (0.02416 and 0.03176) to 3e-4
+    at 8 cells per diameter (measured: 3e-5 and 1e-4 at most), where the order by centre depth gave 0.02267 and
+    0.0707 (its whole disk)."""
+    c = np.array([[0.0, 0.0, 0.0], [0.45, 0.05, 0.0]])
+    r = np.array([0.5, 0.15])
+    for lamp, sign in (("-y", 1.0), ("+y", -1.0)):
+        view = np.column_stack([c[:, 2], c[:, 0], sign * c[:, 1]])  # the -y lamp's plane is (z, x)
+        want, _ = first_surface_raster(view, r, (-0.15, 0.3, 0.15, 0.6), 2048)
+        f = wl.lamp_forces(
+            c, r, 1.0, criterion="area", lamps=[lamp], resolver=resolver, cells_per_diameter=8, device=device
+        )
+        assert abs(sign * f[1, 1] - want[1]) < 3e-4, (lamp, sign * f[1, 1], want[1])
+
+
+def test_overlapping_packing_meets_the_targets(device):
+    """A polydisperse ball (radius ratio 3) whose spheres overlap by up to 30% of the smaller radius, at 4 cells
+    per mean diameter: per-particle force RMS against a first-surface raster of 256 rays per mean diameter is
+    under 0.4% of P pi rbar^2 with the exact resolver and 0.6% with sub-points (issue 19's targets; measured
+    0.04% and 0.53% here; the 1,000-sphere ball, against 128 rays per diameter, 0.96% and 1.06% by centre
+    depth, 0.08% and 0.46% now); balance stays exact."""
+    s = scene_overlapping_polydisperse(300)
+    areas, _ = raster_visible_areas(s.centers, s.radii, 256)
+    rms = {}
+    for resolver in ("exact", "subpoints"):
+        f = wl.lamp_forces(s.centers, s.radii, 1.0, criterion="area", resolver=resolver, device=device)
+        assert np.all(f.sum(axis=0) == 0.0)
+        rms[resolver] = visible_area_error(f, areas, 1.0, float(s.radii.mean()))["rms"]
+    assert rms["exact"] < 0.004 and rms["subpoints"] < 0.006, rms

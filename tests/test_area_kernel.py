@@ -11,9 +11,14 @@ from warp_lamp.kernels.lamp import LampParticles
 from warp_lamp.lamp import lamp_mask
 from warp_lamp.reference.area import (
     EXACT_UNIT,
+    _pair_relations,
+    _surface_order,
     area_depth_slots,
     area_estimate_reference,
+    ordered_key,
     visible_area_reference,
+    visible_disk_areas,
+    visible_sphere_areas,
 )
 
 LOW = ("-x", "-y", "-z")
@@ -92,8 +97,9 @@ def test_subpoints_equal_the_reference_unit_for_unit(device, rng):
 
 def test_exact_resolver_matches_the_reference_up_to_float32_rounding(device, rng):
     """Exact resolver (float32 in the kernel, float64 in the reference): a rounding may move one unit (of
-    4096 per cell) between seeds or lamps; no particle is off by more than 2 units per axis, and under 2% of the
-    entries differ at all."""
+    4096 per cell) between seeds or lamps; no particle is off by more than 2 units per axis, and under 5% of the
+    entries differ at all (2% before issue 19: a raster correction gives a seed a whole number of units, which in a
+    fully covered cell lies on the payout's floor boundary, where float32 and float64 may round apart)."""
     for name, c, r in scenes(rng):
         for cpd, d in ((2, 3), (3.3, 4)):
             grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=cpd)
@@ -101,7 +107,7 @@ def test_exact_resolver_matches_the_reference_up_to_float32_rounding(device, rng
             ref = area_estimate_reference(c, r, grid, depth_slots=d, resolver="exact")
             diff = np.abs(got - ref.units)
             assert diff.max() <= 2, f"{name} cpd={cpd}: max {diff.max()}"
-            assert np.count_nonzero(diff) <= 0.02 * diff.size, f"{name} cpd={cpd}: {np.count_nonzero(diff)}"
+            assert np.count_nonzero(diff) <= 0.05 * diff.size, f"{name} cpd={cpd}: {np.count_nonzero(diff)}"
 
 
 @pytest.mark.parametrize("resolver", ["exact", "subpoints"])
@@ -271,3 +277,67 @@ def test_cpu_and_cuda_bitwise_equal_for_subpoints(rng):
         for dev in DEVICES[1:]:
             gpu, _ = run_area_kernel(c, r, grid, dev, resolver="subpoints")
             np.testing.assert_array_equal(cpu, gpu)
+
+
+# --- overlapping spheres: the surface seen first (issue 19) -------------------------------------------------
+
+
+def one_cell_units(views, radii, device, resolver="exact", h=1.0):
+    """The kernel on one cell [0, h]^2 of the -x lamp, every sphere a seed: ``views`` (K, 3) as (u, v, depth)
+    = (y, z, x). The keys name the spheres at corner (0, 0) (the kernel gathers, orders and resolves them itself).
+    Returns the -x units of each sphere, shape (K,)."""
+    k = len(radii)
+    centers = np.column_stack([views[:, 2], views[:, 0], views[:, 1]])
+    grid = wl.LampGrid([0.0, 0.0, 0.0], [h, h, h], h)
+    keys = np.full(2 * 4 * 3 * k, np.uint64(0xFFFFFFFFFFFFFFFF), dtype=np.uint64)
+    keys[:k] = ordered_key(np.zeros(k), np.arange(k))  # sample 0 of grid x, low lamp, slots 0 .. k-1
+    units, _ = run_area_kernel(centers, radii, grid, device, depth_slots=k, resolver=resolver, lamps=("-x",), keys=keys)
+    return units[:, 0]
+
+
+def test_nested_sphere_takes_nothing(device, rng):
+    """A sphere wholly inside another gets no unit from any lamp, with either resolver, nearer the lamp than the
+    big one's centre or not (issue 19's example: it took 0.93 of its disk by centre depth)."""
+    grid = wl.LampGrid([-1.0] * 3, [1.0] * 3, 0.125)
+    for off in rng.uniform(-0.1, 0.1, (4, 3)):
+        c = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]]) + off
+        for resolver in ("exact", "subpoints"):
+            got, _ = run_area_kernel(c, [0.5, 0.1], grid, device, resolver=resolver)
+            assert np.all(got[1] == 0) and np.all(got[0] == 0), (resolver, got)  # both lamps: net zero
+            low, _ = run_area_kernel(c, [0.5, 0.1], grid, device, resolver=resolver, lamps=LOW)
+            high, _ = run_area_kernel(c, [0.5, 0.1], grid, device, resolver=resolver, lamps=HIGH)
+            assert np.all(low[1] == 0) and np.all(high[1] == 0)
+            assert np.all(low[0] > 0) and np.all(high[0] < 0)
+
+
+def test_exact_resolver_cells_with_intersecting_spheres(device):
+    """One cell, two or three intersecting spheres at random: each sphere's units equal its visible area by
+    surface depth (the float64 reference, itself checked against brute-force rasters) to within 2 units of 4096
+    where the seeds' order holds on the whole cell (the clip), and to within 16 units, RMS under 2.5, where the
+    projected intersection circle may cross the cell and the kernel's 64 x 64 raster corrects the clip (measured
+    on 1,710 such cells in float64: worst 14.75, RMS 1.5). Ordering by centre depth, as before issue 19, errs by
+    over 1,000 units in some of these cells."""
+    rng = np.random.default_rng(7)
+    err, old, undecided = [], [], []
+    f32 = np.float32
+    for _ in range(200):
+        k = int(rng.integers(2, 4))
+        r = rng.uniform(0.5, 3.0, k)
+        views = np.column_stack([rng.uniform(-1.5, 2.5, (k, 2)), rng.uniform(-2.0, 2.0, k)])
+        views, r = views.astype(f32).astype(np.float64), r.astype(f32).astype(np.float64)
+        truth = visible_sphere_areas(views, r, (0.0, 0.0, 1.0, 1.0)) * EXACT_UNIT
+        got = one_cell_units(views, r, device)
+        err.append(np.abs(got - truth).max())
+        order = np.lexsort((np.arange(k), views[:, 2]))
+        ok = np.ones((1, k), dtype=bool)
+        rel = _pair_relations(*(x[order][None].astype(f32) for x in (*views.T, r)), ok, f32(1), f32(1))
+        undecided.append(bool(_surface_order(rel, ok)[1][0]))
+        by_centre = np.empty(k)
+        by_centre[order] = visible_disk_areas(views[order, :2], r[order], (0.0, 0.0, 1.0, 1.0)) * EXACT_UNIT
+        old.append(np.abs(by_centre - truth).max())
+    err, undecided = np.array(err), np.array(undecided)
+    assert 50 < undecided.sum() < len(err) - 50
+    assert err[~undecided].max() <= 2
+    raster = err[undecided]
+    assert raster.max() <= 16 and np.sqrt(np.mean(raster**2)) < 2.5, (raster.max(), np.sqrt(np.mean(raster**2)))
+    assert max(old) > 1000

@@ -10,7 +10,13 @@ import warp as wp
 import warp_lamp as wl
 from warp_lamp import bench_modes as bm
 from warp_lamp.reference import visible_area_reference
-from warp_lamp.scenes import Scene, scene_lattice_ball, scene_lattice_box, scene_slot_block
+from warp_lamp.scenes import (
+    Scene,
+    scene_lattice_ball,
+    scene_lattice_box,
+    scene_overlapping_polydisperse,
+    scene_slot_block,
+)
 
 
 @pytest.fixture(scope="module")
@@ -153,7 +159,15 @@ def tiny_result(ball):
         "small_body": bm.section_small_body("cpu", repeats=1, specimen=ball, cells_per_diameter=(2,)),
         "area": [
             bm.section_area(
-                "cpu", repeats=1, specimen=ball, criterion1_cpd=(2, 4), area_cpd=(2,), estimators=(("exact", 3),)
+                "cpu",
+                repeats=1,
+                specimen=ball,
+                criterion1_cpd=(2, 4),
+                area_cpd=(2,),
+                estimators=(("exact", 3),),
+                overlap=scene_overlapping_polydisperse(80),
+                overlap_cpd=(4,),
+                lone_samples=2,
             )
         ],
         "wetted": bm.section_wetted("cpu", repeats=1, specimen=ball, slot=slot),
@@ -169,7 +183,10 @@ def test_tables_json_and_plot(tiny_result, tmp_path):
     tables = bm.format_modes(tiny_result)
     for head in ("Small bodies:", "Area criterion on", "Wetted surface:", "Lamp frames:"):
         assert head in tables
-    assert tables.count("| cpu |") == sum(len(v) if k != "area" else len(v[0]["rows"]) for k, v in tiny_result.items())
+    area = tiny_result["area"][0]
+    rows = sum(len(v) for k, v in tiny_result.items() if k != "area")
+    assert tables.count("| cpu |") == rows + len(area["rows"]) + len(area["overlap"]) + len(area["lone"])
+    assert len(area["overlap"]) == 1 and len(area["lone"]) == 2
     assert bm.format_modes({}) == ""
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")

@@ -2,7 +2,12 @@
 
 import numpy as np
 
-from warp_lamp.scenes import scene_lattice_box, scene_lone_sphere, scene_sphere_specimen
+from warp_lamp.scenes import (
+    scene_lattice_box,
+    scene_lone_sphere,
+    scene_overlapping_polydisperse,
+    scene_sphere_specimen,
+)
 
 
 def test_sphere_specimen_meets_its_spec():
@@ -33,3 +38,19 @@ def test_lattice_box_and_lone_sphere_are_seeded():
     assert np.abs(a.centers - np.round(a.centers)).max() <= 0.05
     s = scene_lone_sphere(0.5, 0.25, seed=3)
     assert s.n == 1 and np.all((s.centers >= 0) & (s.centers < 0.25))
+
+
+def test_overlapping_polydisperse_ball_meets_its_spec():
+    """The issue-19 ball: n spheres inside the ball, radii in [Rmin, 3 Rmin] with mean 0.5, every overlap at most
+    30% of the smaller radius, many overlaps above 20%, none nested; the same seed gives the same scene."""
+    s = scene_overlapping_polydisperse(300)
+    c, r = s.centers, s.radii
+    assert s.n == 300 and np.all(np.linalg.norm(c, axis=1) + r <= s.radius * (1 + 1e-12))
+    assert r.min() >= 0.25 and r.max() <= 0.75 and abs(r.mean() - 0.5) < 0.05
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    i, j = np.triu_indices(s.n, 1)
+    overlap = (r[i] + r[j] - d[i, j]) / np.minimum(r[i], r[j])
+    assert overlap.max() <= 0.3 + 1e-12 and np.count_nonzero(overlap > 0.2) > 50
+    assert np.all(d[i, j] > np.abs(r[i] - r[j]))
+    again = scene_overlapping_polydisperse(300)
+    assert np.array_equal(again.centers, c) and np.array_equal(again.radii, r)

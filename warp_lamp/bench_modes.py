@@ -34,10 +34,17 @@ from warp_lamp.measures import (
     ball_outer_normals,
     block_face_interior,
     direction_error,
+    lone_sphere_area_error,
     slot_load_ratios,
     visible_area_error,
 )
-from warp_lamp.scenes import Scene, scene_lattice_box, scene_slot_block, scene_sphere_specimen
+from warp_lamp.scenes import (
+    Scene,
+    scene_lattice_box,
+    scene_overlapping_polydisperse,
+    scene_slot_block,
+    scene_sphere_specimen,
+)
 from warp_lamp.timing import Progress, time_median, time_median_events
 
 __all__ = [
@@ -72,7 +79,8 @@ _EXACT: dict[str, tuple[np.ndarray, float]] = {}
 
 def exact_areas(scene: Scene) -> tuple[np.ndarray, float]:
     """The exact visible area of every particle from every lamp [m^2], shape (N, 6), and the seconds it took,
-    cached in memory per scene (keyed by its centres and radii): about a second on the CPU for the specimen."""
+    cached in memory per scene (keyed by its centres and radii): about 20 s on the CPU for the specimen, by surface
+    depth (issue 19)."""
     from warp_lamp.reference import visible_area_reference
 
     c = np.ascontiguousarray(scene.centers, dtype=np.float64)
@@ -274,6 +282,9 @@ def section_area(
     criterion1_cpd=(2, 4, 8, 16, 32),
     area_cpd=(2, 3, 4),
     estimators=AREA_ESTIMATORS,
+    overlap: Scene | bool = False,
+    overlap_cpd=(3, 4),
+    lone_samples: int = 0,
     large=(),
     bar: Progress | None = None,
 ) -> dict:
@@ -289,6 +300,10 @@ def section_area(
         criterion1_cpd: Resolutions of criterion 1 [cells per mean diameter]; 4 is the reference of ``ratio``.
         area_cpd: Resolutions of the area criterion.
         estimators: ``(resolver, depth_slots)`` pairs of the area criterion (8 x 8 sub-points).
+        overlap: The overlapping body of issue 19, measured as the specimen at ``overlap_cpd`` (error only, not
+            timed): a scene, True for :func:`~warp_lamp.scenes.scene_overlapping_polydisperse`, False for none.
+        overlap_cpd: Resolutions of the overlapping body.
+        lone_samples: Random offsets of the lone sphere per resolver and resolution (0: none).
         large: Lattice sizes per axis (the 1M box: 100) whose update at cell 0.25 is timed for criterion 1 and
             for the area criterion with the lamp's defaults at cell 0.25 and at 3 cells per diameter.
         bar: Progress bar, one step per row.
@@ -297,7 +312,10 @@ def section_area(
         ``{"scene", "n", "mean_radius", "reference_s", "rows", "large"}``: a row per estimator and resolution with
         its error (``rms``, ``rms_all``, ``worst``, ``worst_particle``, ``surface``), ``update_s`` and ``ratio``
         (over criterion 1 at 4 cells per diameter on this device; None without that row), the area kernel's
-        ``overflow`` and ``one_sided`` cells, and whether the forces sum to exactly zero (``balanced``).
+        ``overflow`` and ``one_sided`` cells, and whether the forces sum to exactly zero (``balanced``); also
+        ``overlap`` (rows of the overlapping body, with its ``overlap_scene``, ``overlap_n`` and
+        ``overlap_reference_s``) and ``lone`` (per resolver and resolution, the lone sphere's per-lamp load error,
+        :func:`~warp_lamp.measures.lone_sphere_area_error`).
     """
     device = wp.get_device(device)
     specimen = scene_sphere_specimen() if specimen is None else specimen
@@ -328,6 +346,29 @@ def section_area(
     for r in rows:
         r["ratio"] = r["update_s"] / base["update_s"] if base else None
     out = {"scene": specimen.name, "n": specimen.n, "mean_radius": rbar, "reference_s": ref_s, "rows": rows}
+    out["overlap"] = []
+    if overlap is not False:
+        body = scene_overlapping_polydisperse() if overlap is True else overlap
+        exact_o, ref_o = exact_areas(body)
+        out.update(overlap_scene=body.name, overlap_n=body.n, overlap_reference_s=ref_o)
+        for k in overlap_cpd:
+            grid = LampGrid.enclosing(body.centers, body.radii, cells_per_diameter=k)
+            for resolver, slots in estimators:
+                lamp = ShiningLamp(grid, criterion="area", resolver=resolver, depth_slots=slots, device=device)
+                t = time_update(lamp, body, device, repeats=1, moving=False)
+                f = lamp.forces_numpy(P)
+                row = {"device": device.alias, "criterion": "area", "resolver": resolver, "depth_slots": slots}
+                row.update(subpoints=8 if resolver == "subpoints" else None, cells_per_diameter=float(k))
+                row.update(visible_area_error(f, exact_o, P, float(body.radii.mean())))
+                row.update(balanced=bool(np.all(f.sum(axis=0) == 0.0)), eager_s=t["eager_s"])
+                out["overlap"].append(row)
+                _step(bar, f"{device.alias} area overlap {_estimator_name(row)} d/{k:g}")
+    out["lone"] = []
+    for k in area_cpd if lone_samples else ():
+        for resolver in ("subpoints", "exact"):
+            e = lone_sphere_area_error(resolver, k, device, samples=lone_samples)
+            out["lone"].append({"device": device.alias, "resolver": resolver, "cells_per_diameter": float(k), **e})
+            _step(bar, f"{device.alias} area lone sphere {resolver} d/{k:g}")
     out["large"] = []
     for m in large:
         scene = scene_lattice_box(m)
@@ -554,8 +595,9 @@ def bench_modes(devices=None, *, quick: bool = False, progress: bool = True, rep
     specimen = scene_sphere_specimen()
     c1 = (2, 4, 8, 16) if quick else (2, 4, 8, 16, 32)
     plan = [(device, device.is_cuda and not quick) for device in devices]
-    # Rows per device: small body 4 (+3 large), area len(c1) + 12 (+3), wetted 4 (+2), frames 2 x 7.
-    total = sum(4 + len(c1) + 12 + 4 + 14 + 8 * big for _, big in plan)
+    # Rows per device: small body 4 (+3 large), area len(c1) + 12 + 8 overlap + 6 lone (+3), wetted 4 (+2),
+    # frames 2 x 7.
+    total = sum(4 + len(c1) + 26 + 4 + 14 + 8 * big for _, big in plan)
     bar = Progress(total, "bench modes", enabled=progress)
     out = {"small_body": [], "area": [], "wetted": [], "frames": []}
     for device, big in plan:
@@ -564,7 +606,14 @@ def bench_modes(devices=None, *, quick: bool = False, progress: bool = True, rep
         out["small_body"] += section_small_body(device, repeats=reps, specimen=specimen, large=large, bar=bar)
         out["area"].append(
             section_area(
-                device, repeats=reps, specimen=specimen, criterion1_cpd=c1, large=(100,) if big else (), bar=bar
+                device,
+                repeats=reps,
+                specimen=specimen,
+                criterion1_cpd=c1,
+                overlap=scene_overlapping_polydisperse(300 if quick else 1000),
+                lone_samples=16 if quick else 64,
+                large=(100,) if big else (),
+                bar=bar,
             )
         )
         out["wetted"] += section_wetted(device, repeats=reps, specimen=specimen, large=(100,) if big else (), bar=bar)
@@ -647,6 +696,35 @@ def format_modes(result: dict) -> str:
         ]
         header = ["device", "estimator", "cells/d", "RMS", "worst", "update ms", "x C1 at d/4"]
         lines += markdown_table([*header, "overflow / one-sided"], rows)
+        if sec.get("overlap"):
+            lines += [
+                "",
+                f"The same on the {sec['overlap_scene']} ({sec['overlap_n']:,} spheres, radius ratio 3, overlaps up "
+                f"to 30% of the smaller radius; exact reference by surface depth: {sec['overlap_reference_s']:.2f} s):",
+                "",
+            ]
+            rows = [
+                [
+                    r["device"],
+                    _estimator_name(r),
+                    f"{r['cells_per_diameter']:g}",
+                    f"{r['rms']:.3%}",
+                    f"{r['worst']:.2%}",
+                ]
+                for r in sec["overlap"]
+            ]
+            lines += markdown_table(["device", "estimator", "cells/d", "RMS", "worst"], rows)
+        if sec.get("lone"):
+            lines += [
+                "",
+                "A lone sphere: each lamp's load over P pi r^2, minus 1, over random offsets and six lamps:",
+                "",
+            ]
+            rows = [
+                [r["device"], r["resolver"], f"{r['cells_per_diameter']:g}", f"{r['rms']:.2e}", f"{r['worst']:.2e}"]
+                for r in sec["lone"]
+            ]
+            lines += markdown_table(["device", "resolver", "cells/d", "RMS", "worst"], rows)
         if sec.get("large"):
             lines += ["", "The area criterion's defaults on the lattice box, against criterion 1 at cell 0.25:", ""]
             rows = [

@@ -14,6 +14,7 @@ __all__ = [
     "block_face_interior",
     "direction_error",
     "envelope_stress",
+    "lone_sphere_area_error",
     "lone_sphere_error",
     "slot_load_ratios",
     "sphere_stress",
@@ -44,6 +45,39 @@ def lone_sphere_error(criterion: int, cells_per_diameter: float, device, *, samp
         lit = lamp.diagnostics().lit
         errs.extend(lit[name] * h * h / (np.pi * r * r) - 1.0 for name in LAMPS)
     return float(np.sqrt(np.mean(np.square(errs))))
+
+
+def lone_sphere_area_error(
+    resolver: str, cells_per_diameter: float, device, *, samples: int = 64, seed: int = 7, subpoints: int = 8
+) -> dict:
+    """The area criterion's lone-sphere error: over random sub-cell offsets and the six lamps, each lamp's load
+    over P pi r^2, minus 1.
+
+    Args:
+        resolver: ``"exact"`` or ``"subpoints"``.
+        cells_per_diameter: Cells per sphere diameter.
+        device: Warp device.
+        samples: Random offsets of the sphere within a cell.
+        seed: Seed of the offsets.
+        subpoints: S of the sub-point resolver.
+
+    Returns:
+        ``rms`` and ``worst`` (the largest magnitude) of that relative error.
+    """
+    r = 0.5
+    h = 2 * r / cells_per_diameter
+    grid = LampGrid([-1.0] * 3, [1.0] * 3, h)
+    offsets = np.random.default_rng(seed).uniform(0.0, h, (samples, 3))
+    rad = wp.array([r], dtype=wp.float32, device=device)
+    errs = []
+    for lamps in (("-x", "-y", "-z"), ("+x", "+y", "+z")):
+        lamp = ShiningLamp(grid, criterion="area", resolver=resolver, subpoints=subpoints, lamps=lamps, device=device)
+        for off in offsets:
+            lamp.update(wp.array([off], dtype=wp.vec3, device=device), rad)
+            load = np.abs(lamp.counts_numpy()[0]) * grid.cell_area / lamp.unit
+            errs.extend(load / (np.pi * r * r) - 1.0)
+    errs = np.asarray(errs)
+    return {"rms": float(np.sqrt(np.mean(errs**2))), "worst": float(np.abs(errs).max())}
 
 
 def envelope_stress(centers, forces, center, volume: float) -> np.ndarray:

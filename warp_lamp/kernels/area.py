@@ -1,25 +1,41 @@
-"""Per-cell kernel of the lamp's visible-area criterion (issue 15): gather, resolve, balance and scatter.
+"""Per-cell kernel of the lamp's visible-area criterion (issues 15, 19): gather, order, resolve, balance, scatter.
 
 One thread per cell of the three grids handles both lamps of its cell. It reads the D-slot keys the depth pass
 left at the cell's sample rays (the cell corners) and does, in this order, exactly what
-``warp_lamp.reference_area.area_estimate_reference`` documents:
+``warp_lamp.reference.area.area_estimate_reference`` documents:
 
 1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
-   when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``;
-2. resolve each seed's share of the cell, exactly (circle arcs and cell edges, float32) or on S x S sub-points;
-3. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
+   when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``; then cull those
+   that cannot be first anywhere in the cell;
+2. order the seeds for the cell: every pair whose disks overlap is ordered by which surface a ray meets first
+   (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`) where that order
+   holds on the whole cell (:func:`pair_relation`), and the seeds are put in a sequence that keeps every such
+   pair (:func:`topo_order`). The cell is *undecided* where a pair's order may change inside it (the projection
+   of two intersecting spheres' intersection circle, an ellipse, may cross it) or no sequence exists;
+3. resolve each seed's share of the cell, every point to the seed whose surface its ray meets first.
+   Sub-points: S x S points, each to the first seed whose disk holds it, or, in an undecided cell, by its surface
+   depths (:func:`first_surface`). Exact: circle arcs clipped front to back in the sequence
+   (:func:`exact_areas`); in an undecided cell a ``RASTER`` x ``RASTER`` raster of surface depths moves units
+   between the seeds where the clip's sequence is wrong (:func:`raster_correction`);
+4. balance: both lamps distribute the larger of their two rounded totals, by floor, remainder to the largest
    share;
-4. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
+5. scatter the units with integer atomic adds: + for the low lamp, - for the high lamp.
 
 Key layout (the depth pass's output): grid a has (n_u + 1) x (n_v + 1) samples, row-major (j (n_u + 1) + i) from
 ``sample_offset[a]``; sample s holds ``2 D`` keys at ``keys[(2 s + side) D + k]``, k = 0 .. D-1 ascending,
-side 0 the low lamp, 1 the high lamp, EMPTY_KEY where fewer than k + 1 spheres meet the ray.
+side 0 the low lamp, 1 the high lamp, EMPTY_KEY where fewer than k + 1 spheres meet the ray. The keys order by the
+surface depth at the corner ray (entry, or negated exit), the same order as step 2's.
 
 Counts are int64: a particle's units on one axis reach ``cells x unit`` (4096 per whole cell for the exact
 resolver), which passes 2^31 for a sphere of about 410 cells radius, a size the grid budget allows.
 
 Everything is fixed-size local storage; nothing allocates. A cell with more than MAX_SEEDS seeds keeps the front
 ones and counts itself in ``diag[DIAG_OVERFLOW]``; a cell one lamp cannot pay out counts in ``diag[DIAG_ONE_SIDED]``.
+
+Candidates are spheres. A later kind (a planar occluder, whose depth is linear across the cell) enters through
+:func:`surface_depth` and :func:`first_holder` for the points, and through :func:`pair_relation` as a pair that is
+undecided wherever the plane may cut a sphere's surface inside the cell, which sends that cell to the per-point
+surface depths (sub-points) or the raster (exact); the clip itself only ever sees disks.
 """
 
 import warp as wp
@@ -35,11 +51,21 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 MAX_SEEDS = wp.constant(16)
 #: Angular intervals per circle: the other seeds, plus 4 cell edges, rounded up.
 MAX_IVL = wp.constant(20)
+#: Points per cell edge of the exact resolver's raster (RASTER^2 = EXACT_UNIT: one unit per point).
+RASTER = wp.constant(64)
+#: Depth of a ray that misses a candidate.
+MISS = wp.constant(wp.inf)
 
 RESOLVER_EXACT = wp.constant(0)
 RESOLVER_SUBPOINTS = wp.constant(1)
 DIAG_OVERFLOW = wp.constant(0)
 DIAG_ONE_SIDED = wp.constant(1)
+
+#: Pair relations (:func:`pair_relation`).
+REL_APART = wp.constant(0)
+REL_KEEP = wp.constant(1)
+REL_SWAP = wp.constant(2)
+REL_UNDECIDED = wp.constant(3)
 
 PI = wp.constant(3.14159265358979)
 TWO_PI = wp.constant(6.28318530717959)
@@ -269,34 +295,236 @@ def holds_corners(ox: wp.float32, oy: wp.float32, r: wp.float32, hu: wp.float32,
 
 
 @wp.func
-def subpoint_shares(ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, count: wp.int32, hu: float, hv: float, s: int):
-    """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the first seed
-    whose closed disk holds it (float32, each product and sum rounded: the reference repeats it bitwise); a
-    last seed holding all four corners holds every point. ``count`` >= 1."""
+def surface_depth(
+    ox: wp.float32, oy: wp.float32, oz: wp.float32, r: wp.float32, full: wp.int32, tx: wp.float32, ty: wp.float32
+) -> wp.float32:
+    """Depth at which the ray at (tx, ty) first meets a sphere (centre (ox, oy) in the cell, depth ``oz`` along the
+    lamp, radius r): ``oz - sqrt(r^2 - d^2)``, or MISS where ``d^2 > r^2``; a sphere marked ``full`` (its disk
+    holds the whole cell) is met everywhere. Float32, each product and sum rounded (the reference repeats it)."""
+    dx = tx - ox
+    dy = ty - oy
+    d2 = dx * dx + dy * dy
+    r2 = r * r
+    if full == 0 and d2 > r2:
+        return MISS
+    return oz - wp.sqrt(wp.max(r2 - d2, 0.0))
+
+
+@wp.func
+def first_surface(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    tx: wp.float32,
+    ty: wp.float32,
+):
+    """(the seed whose surface the ray at (tx, ty) meets first, ties to the earlier seed; the first seed whose disk
+    holds the point), each ``count`` where none does. Seed ``full`` holds every point. Depths are only computed
+    where a second seed holds the point (the same answer: the first holder wins unless another comes first)."""
+    best = count
+    holder = count
+    depth = MISS
+    for m in range(count):
+        dx = tx - ox[m]
+        dy = ty - oy[m]
+        if m == full or dx * dx + dy * dy <= rr[m] * rr[m]:
+            if holder == count:
+                holder = m
+                best = m
+            else:
+                if depth == MISS:
+                    depth = surface_depth(ox[best], oy[best], oz[best], rr[best], 1, tx, ty)
+                dm = surface_depth(ox[m], oy[m], oz[m], rr[m], 1, tx, ty)
+                if dm < depth:
+                    depth = dm
+                    best = m
+    return best, holder
+
+
+@wp.func
+def first_holder(
+    ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, full: wp.int32, count: wp.int32, tx: wp.float32, ty: wp.float32
+) -> wp.int32:
+    """The first seed whose disk holds the point (tx, ty), ``count`` where none does; seed ``full`` holds every
+    point. Where the seeds are in the surface order for the whole cell, it is the seed whose surface comes first."""
+    for m in range(count):
+        if m == full:
+            return m
+        dx = tx - ox[m]
+        dy = ty - oy[m]
+        if dx * dx + dy * dy <= rr[m] * rr[m]:
+            return m
+    return count
+
+
+@wp.func
+def subpoint_shares(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    hu: float,
+    hv: float,
+    s: int,
+    undecided: wp.int32,
+):
+    """Sub-points won per seed: point (k, l) at ((k + 1/2) hu / S, (l + 1/2) hv / S) goes to the seed whose surface
+    its ray meets first: the first seed whose disk holds it where the seeds are in the surface order for the whole
+    cell, else by its surface depths (``undecided``). Float32, each product and sum rounded: the reference repeats
+    it bitwise. Seed ``full`` holds every point. ``count`` >= 1."""
     shares = vec_seed_f()
-    # After the cull, a last seed that holds all four corners takes every point the others leave, untested.
-    tested = count
-    if holds_corners(ox[count - 1], oy[count - 1], rr[count - 1], hu, hv) != 0:
-        tested = count - 1
-        if tested == 0:
-            shares[0] = float(s * s)
-            return shares
+    if count == 1 and full == 0:
+        shares[0] = float(s * s)
+        return shares
     su = hu / float(s)
     sv = hv / float(s)
     for k in range(s):
         tx = (float(k) + 0.5) * su
         for kv in range(s):
             ty = (float(kv) + 0.5) * sv
-            won = tested
-            for m in range(tested):
-                dx = tx - ox[m]
-                dy = ty - oy[m]
-                if dx * dx + dy * dy <= rr[m] * rr[m]:
-                    won = m
-                    break
+            won = count
+            if undecided != 0:
+                won, _holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
+            else:
+                won = first_holder(ox, oy, rr, full, count, tx, ty)
             if won < count:
                 shares[won] = shares[won] + 1.0
     return shares
+
+
+@wp.func
+def pair_relation(
+    xe: wp.float32,
+    ye: wp.float32,
+    ze: wp.float32,
+    re: wp.float32,
+    xl: wp.float32,
+    yl: wp.float32,
+    zl: wp.float32,
+    rl: wp.float32,
+    hu: wp.float32,
+    hv: wp.float32,
+) -> wp.int32:
+    """How seeds e (the earlier by centre depth) and l must be ordered for the clip in the cell [0, hu] x [0, hv].
+
+    REL_APART: their disks do not overlap. REL_KEEP / REL_SWAP: e's surface (or l's) is the first of the two
+    wherever both disks hold a point of the cell. REL_UNDECIDED: it may change inside the cell.
+
+    l's surface can come first where both disks hold a point only where e's chord along the ray lies inside l's
+    (else e enters first: its chord's midpoint, the centre depth, comes first). That region of e's disk is bounded
+    by e's outline and by the projection of the points of the spheres' intersection circle where both chords
+    begin or both end: those in front of both centres or behind both. So where the circle has no such point, or
+    its projection (an ellipse) misses the cell (its bounding box misses it, or all four corners lie inside it),
+    one answer holds on the whole of e's disk in the cell, read at its point nearest e's centre. Disjoint spheres
+    keep e first; a sphere inside the other is behind it everywhere. Float32 (the reference repeats it bitwise).
+    """
+    dx = xl - xe
+    dy = yl - ye
+    dz = zl - ze
+    rs = re + rl
+    dp = dx * dx + dy * dy
+    if dp >= rs * rs:
+        return REL_APART
+    d2 = dp + dz * dz
+    if d2 >= rs * rs:
+        return REL_KEEP
+    rd = re - rl
+    if d2 <= rd * rd:
+        if re < rl:
+            return REL_SWAP
+        return REL_KEEP
+    re2 = re * re
+    rl2 = rl * rl
+    # The intersection circle: centre e + t (l - e), radius^2 rho2, normal along (dx, dy, dz).
+    t = (d2 + re2 - rl2) / (2.0 * d2)
+    rho2 = wp.max(re2 - t * t * d2, 0.0)
+    mu = xe + t * dx
+    mv = ye + t * dy
+    ma = ze + t * dz
+    bu = wp.sqrt(rho2 * (dy * dy + dz * dz) / d2)
+    bv = wp.sqrt(rho2 * (dx * dx + dz * dz) / d2)
+    ba = wp.sqrt(rho2 * (dx * dx + dy * dy) / d2)
+    # Only points of the circle in front of both centres or behind both bound the region; and only if the
+    # ellipse's bounding box meets the cell.
+    flips = (ma - ba < ze or ma + ba > zl) and mu - bu <= hu and mu + bu >= 0.0 and mv - bv <= hv and mv + bv >= 0.0
+    if flips:
+        # Inside the ellipse: dz^2 |q - m|^2 + ((dx, dy) . (q - m))^2 < dz^2 rho2.
+        inside = int(1)
+        for corner in range(4):
+            du = wp.where(corner % 2 == 1, hu, 0.0) - mu
+            dv = wp.where(corner / 2 == 1, hv, 0.0) - mv
+            w = dx * du + dy * dv
+            q = dz * dz * (du * du + dv * dv) + w * w - dz * dz * rho2
+            if not (q < 0.0):
+                inside = 0
+        if inside == 0:
+            return REL_UNDECIDED
+    qx = wp.clamp(xe, 0.0, hu)
+    qy = wp.clamp(ye, 0.0, hv)
+    lx = qx - xl
+    ly = qy - yl
+    dl = lx * lx + ly * ly
+    if dl > rl2:
+        return REL_KEEP
+    ex = qx - xe
+    ey = qy - ye
+    se = wp.sqrt(wp.max(re2 - (ex * ex + ey * ey), 0.0))
+    sl = wp.sqrt(rl2 - dl)
+    if zl - sl <= ze - se and ze + se <= zl + sl:
+        return REL_SWAP
+    return REL_KEEP
+
+
+@wp.func
+def topo_order(prec: vec_seed_i, count: wp.int32) -> vec_seed_i:
+    """An order of seeds 0 .. count-1 in which every seed comes after those in its ``prec`` bit mask, taking the
+    lowest free index at each step; order[0] = -1 where the constraints have a cycle."""
+    order = vec_seed_i()
+    placed = int(0)
+    for step in range(count):
+        pick = int(-1)
+        for k in range(count):
+            if pick < 0 and ((placed >> k) & 1) == 0 and (prec[k] & ~placed) == 0:
+                pick = k
+        if pick < 0:
+            order[0] = -1
+            return order
+        order[step] = pick
+        placed = placed | (1 << pick)
+    return order
+
+
+@wp.func
+def raster_correction(
+    ox: vec_seed_f,
+    oy: vec_seed_f,
+    oz: vec_seed_f,
+    rr: vec_seed_f,
+    full: wp.int32,
+    count: wp.int32,
+    hu: float,
+    hv: float,
+    weight: float,
+) -> vec_seed_f:
+    """On RASTER x RASTER points of the cell (as the sub-points), ``weight`` per point from the first seed whose disk
+    holds it (whom the clip gave it) to the seed whose surface comes first there, where they differ."""
+    corr = vec_seed_f()
+    su = hu / float(RASTER)
+    sv = hv / float(RASTER)
+    for k in range(RASTER):
+        tx = (float(k) + 0.5) * su
+        for kv in range(RASTER):
+            ty = (float(kv) + 0.5) * sv
+            won, holder = first_surface(ox, oy, oz, rr, full, count, tx, ty)
+            if won != holder:
+                corr[won] = corr[won] + weight
+                corr[holder] = corr[holder] - weight
+    return corr
 
 
 @wp.kernel
@@ -349,6 +577,7 @@ def area_cells(
         okeys = vec_seed_k()
         ox = vec_seed_f()
         oy = vec_seed_f()
+        oz = vec_seed_f()
         rr = vec_seed_f()
         count = int(0)
         for m in range(4 * d + 8):
@@ -407,6 +636,7 @@ def area_cells(
                     ids[pos] = ids[pos - 1]
                     ox[pos] = ox[pos - 1]
                     oy[pos] = oy[pos - 1]
+                    oz[pos] = oz[pos - 1]
                     rr[pos] = rr[pos - 1]
                     pos -= 1
                 else:
@@ -415,33 +645,79 @@ def area_cells(
             ids[pos] = pid
             ox[pos] = cx
             oy[pos] = cy
+            oz[pos] = depth
             rr[pos] = r
             count += 1
         # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
-        # larger, or behind the first seed whose disk holds all four corners (it holds the whole cell).
+        # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), one whose
+        # surface is behind that one's on the whole cell (pair_relation: disjoint spheres, nested, or chords
+        # never holding that one's there).
         kept = int(0)
+        full = int(-1)
         for k in range(count):
             drop = int(0)
             for k2 in range(kept):
                 if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
                     drop = 1
+            if drop == 0 and full >= 0:
+                rel = pair_relation(ox[full], oy[full], oz[full], rr[full], ox[k], oy[k], oz[k], rr[k], hu, hv)
+                if rel == REL_KEEP or rel == REL_APART:
+                    drop = 1
             if drop == 0:
                 ids[kept] = ids[k]
                 ox[kept] = ox[k]
                 oy[kept] = oy[k]
+                oz[kept] = oz[k]
                 rr[kept] = rr[k]
+                if full < 0 and holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
+                    full = kept
                 kept += 1
-                if holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
-                    break
         count = kept
         shares = vec_seed_f()
+        # The seeds' order: the surface order wherever it holds on the whole cell; else each point's surface
+        # depths decide (sub-points), or the raster corrects the clip (exact).
+        undecided = int(0)
+        if count > 1:
+            prec = vec_seed_i()
+            for k1 in range(1, count):
+                for k0 in range(k1):
+                    rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
+                    if rel == REL_KEEP:
+                        prec[k1] = prec[k1] | (1 << k0)
+                    elif rel == REL_SWAP:
+                        prec[k0] = prec[k0] | (1 << k1)
+                    elif rel == REL_UNDECIDED:
+                        undecided = 1
+            order = topo_order(prec, count)
+            if order[0] < 0:
+                undecided = 1
+            else:
+                ids_c = ids
+                ox_c = ox
+                oy_c = oy
+                oz_c = oz
+                rr_c = rr
+                full_c = full
+                for k in range(count):
+                    o = order[k]
+                    ids[k] = ids_c[o]
+                    ox[k] = ox_c[o]
+                    oy[k] = oy_c[o]
+                    oz[k] = oz_c[o]
+                    rr[k] = rr_c[o]
+                    if o == full_c:
+                        full = k
         if count > 0:
             if resolver == RESOLVER_SUBPOINTS:
-                shares = subpoint_shares(ox, oy, rr, count, hu, hv, subpoints)
+                shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints, undecided)
             else:
                 areas = exact_areas(ox, oy, rr, count, hu, hv)
                 for k in range(count):
                     shares[k] = areas[k] / (hu * hv) * float(unit)
+                if undecided != 0:
+                    corr = raster_correction(ox, oy, oz, rr, full, count, hu, hv, float(unit) / float(RASTER * RASTER))
+                    for k in range(count):
+                        shares[k] = wp.max(shares[k] + corr[k], 0.0)
         total = float(0.0)
         for k in range(count):
             total += shares[k]

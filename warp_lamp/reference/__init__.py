@@ -12,6 +12,7 @@ from warp_lamp.reference.area import (
     area_estimate_reference,
     visible_area_reference,
     visible_disk_areas,
+    visible_sphere_areas,
 )
 from warp_lamp.reference.distributed import (
     fixed_units_reference,
@@ -49,4 +50,5 @@ __all__ = [
     "sphere_box_volume",
     "visible_area_reference",
     "visible_disk_areas",
+    "visible_sphere_areas",
 ]
