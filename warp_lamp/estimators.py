@@ -381,10 +381,54 @@ class AreaSplit(FirstHit):
         self.resolver = resolver
         self.subpoints = subpoints
         self.unit = AREA_EXACT_UNIT if resolver == "exact" else subpoints**2
+        self._sides = None
+
+    @property
+    def two_phase(self) -> bool:
+        """The cell pass in two phases: one thread per (cell, lamp) resolves its shares into a scratch array
+        (``area_sides``; 68 bytes per cell and lamp), then one thread per cell balances and scatters
+        (``area_payout``). Twice the threads and half the chain per thread of the one-phase pass; the result is
+        bitwise the same."""
+        return self._sides is not None
+
+    @two_phase.setter
+    def two_phase(self, on: bool) -> None:
+        if bool(on) == self.two_phase:
+            return
+        self._sides = None
+        if on:
+            self._sides = wp.zeros(2 * self.grid.n_cells, dtype=area_kernels.SideShares, device=self.device)
 
     def launch_scatter(self) -> None:
         """Step 3: each cell shares its units among the spheres visible in it."""
         if self.n == 0:
+            return
+        shared = [
+            self._cells(),
+            self._input.particles,
+            self.keys,
+            self.depth_slots,
+            self._rays().offset,  # where each lamp's corner samples start among the keys
+            self.lamp_mask,
+            area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
+            self.subpoints,
+            self.unit,
+        ]
+        if self._sides is not None:
+            wp.launch(
+                area_kernels.area_sides,
+                dim=2 * self.grid.n_cells,
+                inputs=shared,
+                outputs=[self._sides],
+                device=self.device,
+            )
+            wp.launch(
+                area_kernels.area_payout,
+                dim=self.grid.n_cells,
+                inputs=[self._cells(), self._sides, self.lamp_mask, shared[6]],
+                outputs=[self.counts, self.diag[2:]],
+                device=self.device,
+            )
             return
         wp.launch(
             area_kernels.area_cells,

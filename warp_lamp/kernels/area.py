@@ -527,212 +527,224 @@ def raster_correction(
     return corr
 
 
-@wp.kernel
-def area_cells(
+@wp.struct
+class SideShares:
+    """One lamp's shares of one cell: its seeds' particle ids and shares (units of ``unit`` per cell), how many,
+    their float sum in seed order, and whether the gather overflowed."""
+
+    ids: vec_seed_i
+    shares: vec_seed_f
+    count: wp.int32
+    total: wp.float32
+    overflow: wp.int32
+
+
+@wp.func
+def side_shares(
     grid: LampGridParams,
     particles: LampParticles,
     keys: wp.array[wp.uint64],
-    depth_slots: wp.int32,
+    d: wp.int32,
     sample_offset: wp.vec3i,
-    lamp_mask: wp.int32,
+    a: wp.int32,
+    i: wp.int32,
+    j: wp.int32,
+    side: wp.int32,
     resolver: wp.int32,
     subpoints: wp.int32,
     unit: wp.int32,
-    # outputs
-    counts: wp.array[wp.int64],
-    diag: wp.array[wp.int32],
-):
-    """One thread per cell: gather, resolve, balance and scatter both lamps of the cell (module docstring)."""
-    c = wp.tid()
-    cell = grid_cell(grid, c)
-    a = cell[0]
-    i = cell[1]
-    j = cell[2]
-    bits = (lamp_mask >> (2 * a)) & 3
-    if bits == 0:
-        return
+) -> SideShares:
+    """Steps 1-3 of the module docstring for lamp ``side`` of cell (i, j) of grid a: gather, order, resolve."""
     nu = grid.n_u[a]
     nv = grid.n_v[a]
     hu = grid.h_u[a]
     hv = grid.h_v[a]
     x0 = float(i) * hu
     y0 = float(j) * hv
-    d = depth_slots
-    ids0 = vec_seed_i()
-    ids1 = vec_seed_i()
-    share0 = vec_seed_f()
-    share1 = vec_seed_f()
-    count0 = int(0)
-    count1 = int(0)
-    total0 = int(0)
-    total1 = int(0)
-    # Each side's float sum of shares, summed once in seed order: the rounding of the payout depends on it.
-    sum0 = float(0.0)
-    sum1 = float(0.0)
     overflow = int(0)
-    for side in range(2):
-        if ((bits >> side) & 1) == 0:
-            continue
-        ids = vec_seed_i()
-        okeys = vec_seed_k()
-        ox = vec_seed_f()
-        oy = vec_seed_f()
-        oz = vec_seed_f()
-        rr = vec_seed_f()
-        count = int(0)
-        for m in range(4 * d + 8):
-            # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0.
-            di = int(0)
-            dj = int(0)
-            slot = int(0)
-            if m < 4 * d:
-                corner = m / d
-                slot = m - corner * d
-                di = corner % 2
-                dj = corner / 2
-            else:
-                ring = m - 4 * d
-                if ring < 4:
-                    di = wp.where(ring < 2, -1, 2)
-                    dj = ring % 2
-                else:
-                    di = ring % 2
-                    dj = wp.where(ring < 6, -1, 2)
-            si = i + di
-            sj = j + dj
-            if si < 0 or si > nu or sj < 0 or sj > nv:
-                continue
-            key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + side) * d + slot]
-            if key == EMPTY_KEY:
-                continue
-            pid = key_owner(key)
-            dup = int(0)
-            for k in range(count):
-                if ids[k] == pid:
-                    dup = 1
-            if dup != 0:
-                continue
-            p = grid_to_frame(grid, particles.positions[pid])
-            r = particles.radii[pid]
-            cx = (p[(a + 1) % 3] - grid.corner_u[a]) - x0
-            cy = (p[(a + 2) % 3] - grid.corner_v[a]) - y0
-            gx = wp.max(wp.max(-cx, cx - hu), 0.0)
-            gy = wp.max(wp.max(-cy, cy - hv), 0.0)
-            if not (gx * gx + gy * gy < r * r):
-                continue
-            depth = p[a]
-            if side == 1:
-                depth = -p[a]
-            okey = pack_key(depth, pid)
-            if count == MAX_SEEDS:
-                overflow = 1
-                if okey >= okeys[MAX_SEEDS - 1]:
-                    continue
-                count = MAX_SEEDS - 1
-            pos = count
-            while pos > 0:
-                if okeys[pos - 1] > okey:
-                    okeys[pos] = okeys[pos - 1]
-                    ids[pos] = ids[pos - 1]
-                    ox[pos] = ox[pos - 1]
-                    oy[pos] = oy[pos - 1]
-                    oz[pos] = oz[pos - 1]
-                    rr[pos] = rr[pos - 1]
-                    pos -= 1
-                else:
-                    break
-            okeys[pos] = okey
-            ids[pos] = pid
-            ox[pos] = cx
-            oy[pos] = cy
-            oz[pos] = depth
-            rr[pos] = r
-            count += 1
-        # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
-        # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), one whose
-        # surface is behind that one's on the whole cell (pair_relation: disjoint spheres, nested, or chords
-        # never holding that one's there).
-        kept = int(0)
-        full = int(-1)
-        for k in range(count):
-            drop = int(0)
-            for k2 in range(kept):
-                if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
-                    drop = 1
-            if drop == 0 and full >= 0:
-                rel = pair_relation(ox[full], oy[full], oz[full], rr[full], ox[k], oy[k], oz[k], rr[k], hu, hv)
-                if rel == REL_KEEP or rel == REL_APART:
-                    drop = 1
-            if drop == 0:
-                ids[kept] = ids[k]
-                ox[kept] = ox[k]
-                oy[kept] = oy[k]
-                oz[kept] = oz[k]
-                rr[kept] = rr[k]
-                if full < 0 and holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
-                    full = kept
-                kept += 1
-        count = kept
-        shares = vec_seed_f()
-        # The seeds' order: the surface order wherever it holds on the whole cell; else each point's surface
-        # depths decide (sub-points), or the raster corrects the clip (exact).
-        undecided = int(0)
-        if count > 1:
-            prec = vec_seed_i()
-            for k1 in range(1, count):
-                for k0 in range(k1):
-                    rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
-                    if rel == REL_KEEP:
-                        prec[k1] = prec[k1] | (1 << k0)
-                    elif rel == REL_SWAP:
-                        prec[k0] = prec[k0] | (1 << k1)
-                    elif rel == REL_UNDECIDED:
-                        undecided = 1
-            order = topo_order(prec, count)
-            if order[0] < 0:
-                undecided = 1
-            else:
-                ids_c = ids
-                ox_c = ox
-                oy_c = oy
-                oz_c = oz
-                rr_c = rr
-                full_c = full
-                for k in range(count):
-                    o = order[k]
-                    ids[k] = ids_c[o]
-                    ox[k] = ox_c[o]
-                    oy[k] = oy_c[o]
-                    oz[k] = oz_c[o]
-                    rr[k] = rr_c[o]
-                    if o == full_c:
-                        full = k
-        if count > 0:
-            if resolver == RESOLVER_SUBPOINTS:
-                shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints, undecided)
-            else:
-                areas = exact_areas(ox, oy, rr, count, hu, hv)
-                for k in range(count):
-                    shares[k] = areas[k] / (hu * hv) * float(unit)
-                if undecided != 0:
-                    corr = raster_correction(ox, oy, oz, rr, full, count, hu, hv, float(unit) / float(RASTER * RASTER))
-                    for k in range(count):
-                        shares[k] = wp.max(shares[k] + corr[k], 0.0)
-        total = float(0.0)
-        for k in range(count):
-            total += shares[k]
-        if side == 0:
-            ids0 = ids
-            share0 = shares
-            count0 = count
-            sum0 = total
-            total0 = int(wp.floor(total + 0.5))
+    ids = vec_seed_i()
+    okeys = vec_seed_k()
+    ox = vec_seed_f()
+    oy = vec_seed_f()
+    oz = vec_seed_f()
+    rr = vec_seed_f()
+    count = int(0)
+    for m in range(4 * d + 8):
+        # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0.
+        di = int(0)
+        dj = int(0)
+        slot = int(0)
+        if m < 4 * d:
+            corner = m / d
+            slot = m - corner * d
+            di = corner % 2
+            dj = corner / 2
         else:
-            ids1 = ids
-            share1 = shares
-            count1 = count
-            sum1 = total
-            total1 = int(wp.floor(total + 0.5))
+            ring = m - 4 * d
+            if ring < 4:
+                di = wp.where(ring < 2, -1, 2)
+                dj = ring % 2
+            else:
+                di = ring % 2
+                dj = wp.where(ring < 6, -1, 2)
+        si = i + di
+        sj = j + dj
+        if si < 0 or si > nu or sj < 0 or sj > nv:
+            continue
+        key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + side) * d + slot]
+        if key == EMPTY_KEY:
+            continue
+        pid = key_owner(key)
+        dup = int(0)
+        for k in range(count):
+            if ids[k] == pid:
+                dup = 1
+        if dup != 0:
+            continue
+        p = grid_to_frame(grid, particles.positions[pid])
+        r = particles.radii[pid]
+        cx = (p[(a + 1) % 3] - grid.corner_u[a]) - x0
+        cy = (p[(a + 2) % 3] - grid.corner_v[a]) - y0
+        gx = wp.max(wp.max(-cx, cx - hu), 0.0)
+        gy = wp.max(wp.max(-cy, cy - hv), 0.0)
+        if not (gx * gx + gy * gy < r * r):
+            continue
+        depth = p[a]
+        if side == 1:
+            depth = -p[a]
+        okey = pack_key(depth, pid)
+        if count == MAX_SEEDS:
+            overflow = 1
+            if okey >= okeys[MAX_SEEDS - 1]:
+                continue
+            count = MAX_SEEDS - 1
+        pos = count
+        while pos > 0:
+            if okeys[pos - 1] > okey:
+                okeys[pos] = okeys[pos - 1]
+                ids[pos] = ids[pos - 1]
+                ox[pos] = ox[pos - 1]
+                oy[pos] = oy[pos - 1]
+                oz[pos] = oz[pos - 1]
+                rr[pos] = rr[pos - 1]
+                pos -= 1
+            else:
+                break
+        okeys[pos] = okey
+        ids[pos] = pid
+        ox[pos] = cx
+        oy[pos] = cy
+        oz[pos] = depth
+        rr[pos] = r
+        count += 1
+    # Cull seeds that can win nothing (the reference's _cull): concentric with a kept earlier seed and not
+    # larger; or, after the first seed whose disk holds all four corners (it holds the whole cell), one whose
+    # surface is behind that one's on the whole cell (pair_relation: disjoint spheres, nested, or chords
+    # never holding that one's there).
+    kept = int(0)
+    full = int(-1)
+    for k in range(count):
+        drop = int(0)
+        for k2 in range(kept):
+            if ox[k2] == ox[k] and oy[k2] == oy[k] and rr[k] <= rr[k2]:
+                drop = 1
+        if drop == 0 and full >= 0:
+            rel = pair_relation(ox[full], oy[full], oz[full], rr[full], ox[k], oy[k], oz[k], rr[k], hu, hv)
+            if rel == REL_KEEP or rel == REL_APART:
+                drop = 1
+        if drop == 0:
+            ids[kept] = ids[k]
+            ox[kept] = ox[k]
+            oy[kept] = oy[k]
+            oz[kept] = oz[k]
+            rr[kept] = rr[k]
+            if full < 0 and holds_corners(ox[k], oy[k], rr[k], hu, hv) != 0:
+                full = kept
+            kept += 1
+    count = kept
+    shares = vec_seed_f()
+    # The seeds' order: the surface order wherever it holds on the whole cell; else each point's surface
+    # depths decide (sub-points), or the raster corrects the clip (exact).
+    undecided = int(0)
+    if count > 1:
+        prec = vec_seed_i()
+        for k1 in range(1, count):
+            for k0 in range(k1):
+                rel = pair_relation(ox[k0], oy[k0], oz[k0], rr[k0], ox[k1], oy[k1], oz[k1], rr[k1], hu, hv)
+                if rel == REL_KEEP:
+                    prec[k1] = prec[k1] | (1 << k0)
+                elif rel == REL_SWAP:
+                    prec[k0] = prec[k0] | (1 << k1)
+                elif rel == REL_UNDECIDED:
+                    undecided = 1
+        order = topo_order(prec, count)
+        if order[0] < 0:
+            undecided = 1
+        else:
+            ids_c = ids
+            ox_c = ox
+            oy_c = oy
+            oz_c = oz
+            rr_c = rr
+            full_c = full
+            for k in range(count):
+                o = order[k]
+                ids[k] = ids_c[o]
+                ox[k] = ox_c[o]
+                oy[k] = oy_c[o]
+                oz[k] = oz_c[o]
+                rr[k] = rr_c[o]
+                if o == full_c:
+                    full = k
+    if count > 0:
+        if resolver == RESOLVER_SUBPOINTS:
+            shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints, undecided)
+        else:
+            areas = exact_areas(ox, oy, rr, count, hu, hv)
+            for k in range(count):
+                shares[k] = areas[k] / (hu * hv) * float(unit)
+            if undecided != 0:
+                corr = raster_correction(ox, oy, oz, rr, full, count, hu, hv, float(unit) / float(RASTER * RASTER))
+                for k in range(count):
+                    shares[k] = wp.max(shares[k] + corr[k], 0.0)
+    total = float(0.0)
+    for k in range(count):
+        total += shares[k]
+    total = float(0.0)
+    for k in range(count):
+        total += shares[k]
+    out = SideShares()
+    out.ids = ids
+    out.shares = shares
+    out.count = count
+    out.total = total
+    out.overflow = overflow
+    return out
+
+
+@wp.func
+def pay_out(
+    a: wp.int32,
+    bits: wp.int32,
+    s0: SideShares,
+    s1: SideShares,
+    resolver: wp.int32,
+    # outputs
+    counts: wp.array[wp.int64],
+    diag: wp.array[wp.int32],
+):
+    """Steps 4-5: both lamps pay the larger of their rounded totals, by floor, remainder to the largest share."""
+    ids0 = s0.ids
+    ids1 = s1.ids
+    share0 = s0.shares
+    share1 = s1.shares
+    count0 = s0.count
+    count1 = s1.count
+    sum0 = s0.total
+    sum1 = s1.total
+    total0 = int(wp.floor(sum0 + 0.5))
+    total1 = int(wp.floor(sum1 + 0.5))
+    overflow = s0.overflow | s1.overflow
     if overflow != 0:
         wp.atomic_add(diag, DIAG_OVERFLOW, 1)
     big = wp.max(total0, total1)
@@ -779,3 +791,86 @@ def area_cells(
         for k in range(n):
             if units[k] != 0:
                 wp.atomic_add(counts, 3 * ids[k] + a, sign * wp.int64(units[k]))
+
+
+@wp.kernel
+def area_cells(
+    grid: LampGridParams,
+    particles: LampParticles,
+    keys: wp.array[wp.uint64],
+    depth_slots: wp.int32,
+    sample_offset: wp.vec3i,
+    lamp_mask: wp.int32,
+    resolver: wp.int32,
+    subpoints: wp.int32,
+    unit: wp.int32,
+    # outputs
+    counts: wp.array[wp.int64],
+    diag: wp.array[wp.int32],
+):
+    """One thread per cell: gather, resolve, balance and scatter both lamps of the cell (module docstring)."""
+    c = wp.tid()
+    cell = grid_cell(grid, c)
+    a = cell[0]
+    bits = (lamp_mask >> (2 * a)) & 3
+    if bits == 0:
+        return
+    s0 = SideShares()
+    s1 = SideShares()
+    if (bits & 1) != 0:
+        s0 = side_shares(
+            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0, resolver, subpoints, unit
+        )
+    if (bits & 2) != 0:
+        s1 = side_shares(
+            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1, resolver, subpoints, unit
+        )
+    pay_out(a, bits, s0, s1, resolver, counts, diag)
+
+
+@wp.kernel
+def area_sides(
+    grid: LampGridParams,
+    particles: LampParticles,
+    keys: wp.array[wp.uint64],
+    depth_slots: wp.int32,
+    sample_offset: wp.vec3i,
+    lamp_mask: wp.int32,
+    resolver: wp.int32,
+    subpoints: wp.int32,
+    unit: wp.int32,
+    # outputs
+    sides: wp.array[SideShares],
+):
+    """The two-phase pass, phase 1: one thread per (cell, lamp) gathers, orders and resolves that lamp's shares
+    (``side_shares``), twice the threads of ``area_cells`` and half its chain per thread."""
+    t = wp.tid()
+    c = t / 2
+    side = t - 2 * c
+    cell = grid_cell(grid, c)
+    a = cell[0]
+    out = SideShares()
+    if ((lamp_mask >> (2 * a + side)) & 1) != 0:
+        out = side_shares(
+            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], side, resolver, subpoints, unit
+        )
+    sides[t] = out
+
+
+@wp.kernel
+def area_payout(
+    grid: LampGridParams,
+    sides: wp.array[SideShares],
+    lamp_mask: wp.int32,
+    resolver: wp.int32,
+    # outputs
+    counts: wp.array[wp.int64],
+    diag: wp.array[wp.int32],
+):
+    """The two-phase pass, phase 2: one thread per cell balances its two lamps' shares and scatters them."""
+    c = wp.tid()
+    a = grid_cell(grid, c)[0]
+    bits = (lamp_mask >> (2 * a)) & 3
+    if bits == 0:
+        return
+    pay_out(a, bits, sides[2 * c], sides[2 * c + 1], resolver, counts, diag)
