@@ -382,6 +382,9 @@ class AreaSplit(FirstHit):
         self.subpoints = subpoints
         self.unit = AREA_EXACT_UNIT if resolver == "exact" else subpoints**2
         self._sides = None
+        #: Threads per block of the cell pass: a latency-bound pass of few cells spreads over more SMs in
+        #: smaller blocks.
+        self.block_dim = 256
 
     @property
     def two_phase(self) -> bool:
@@ -421,6 +424,7 @@ class AreaSplit(FirstHit):
                 inputs=shared,
                 outputs=[self._sides],
                 device=self.device,
+                block_dim=self.block_dim,
             )
             wp.launch(
                 area_kernels.area_payout,
@@ -428,24 +432,16 @@ class AreaSplit(FirstHit):
                 inputs=[self._cells(), self._sides, self.lamp_mask, shared[6]],
                 outputs=[self.counts, self.diag[2:]],
                 device=self.device,
+                block_dim=self.block_dim,
             )
             return
         wp.launch(
             area_kernels.area_cells,
             dim=self.grid.n_cells,
-            inputs=[
-                self._cells(),
-                self._input.particles,
-                self.keys,
-                self.depth_slots,
-                self._rays().offset,  # where each lamp's corner samples start among the keys
-                self.lamp_mask,
-                area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
-                self.subpoints,
-                self.unit,
-            ],
+            inputs=shared,
             outputs=[self.counts, self.diag[2:]],
             device=self.device,
+            block_dim=self.block_dim,
         )
 
 
