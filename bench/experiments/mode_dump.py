@@ -167,6 +167,7 @@ def compare(a_path: str, b_path: str) -> int:
     a, b = np.load(a_path), np.load(b_path)
     keys = sorted(set(a.files) | set(b.files))
     bad = added = 0
+    groups = {}
     for k in keys:
         if k not in b.files:
             print(f"only in old: {k}")
@@ -183,7 +184,10 @@ def compare(a_path: str, b_path: str) -> int:
         )
         if not same:
             bad += 1
+            groups[k.split(".")[0]] = groups.get(k.split(".")[0], 0) + 1
             print(f"DIFFERS: {k} {x.shape} {y.shape}")
+    if groups:
+        print("differing cases: " + ", ".join(f"{g} ({n})" for g, n in sorted(groups.items())))
     print(f"{len(keys) - added} arrays compared, {bad} differ ({added} only in the new dump)")
     return 1 if bad else 0
 
