@@ -307,6 +307,31 @@ def test_fixed_point_overflow_is_refused():
         porosity_distributed(None, centers, [200.0], (0, 0, 0), (1, 1, 1), (1, 1, 1), method="centroid")
 
 
+def test_porosity_checks_are_porositys():
+    """porosity_distributed checks its box and options with porosity's own code: a bad method is named alike, and
+    its budget counts the bitmaps that NCCL's OR by gathering holds (1 + ranks), refused on every rank."""
+    from warp_lamp import porosity
+    from warp_lamp.distributed import porosity_distributed
+
+    c = np.array([[0.5, 0.5, 0.5]])
+    for call in (porosity, lambda *a, **k: porosity_distributed(None, *a, **k)):
+        with pytest.raises(ValueError, match=r"method: unknown 'voxels'; expected one of"):
+            call(c, [0.2], (0, 0, 0), (1, 1, 1), (4, 4, 4), method="voxels")
+    # 64^3 sub-cells: a 32 KiB bitmap; 100 KiB holds one (MPI) but not three (NCCL on 2 ranks).
+    args = (c, [0.2], (0, 0, 0), (1, 1, 1), (8, 8, 8))
+    porosity_distributed(None, *args, subdivisions=8, max_bytes=100_000)
+
+    def run(coll):
+        try:
+            porosity_distributed(coll, *args, subdivisions=8, max_bytes=100_000)
+        except (ValueError, RuntimeError) as e:
+            return str(e)
+        return None
+
+    got = run_ranks(fake_nccl_collectives(2), run)
+    assert all(m is not None and "3 bitmaps of 32,768 bytes" in m for m in got), got
+
+
 def test_or_gathered(device):
     """dist_or_gathered is the bitwise OR of every rank's words."""
     rng = np.random.default_rng(6)

@@ -57,19 +57,15 @@ from warp_lamp.pipeline import LampFrame, LampInput, lamp_input
 from warp_lamp.porosity import (
     POROSITY_METHODS,
     count_bitmap,
-    midpoint_subdivisions,
-    porosity_bitmap_bytes,
     porosity_mark_union,
+    porosity_plan,
 )
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
-    check_box,
     check_budget,
     check_integer,
     check_particles,
     check_positive,
-    check_shape,
-    check_subdivisions,
     format_bytes,
     lamp_mask,
     lamp_rotation,
@@ -1212,25 +1208,11 @@ def porosity_distributed(
     error = None
     try:
         c, r = check_particles(centers, radii)
-        lo, hi = check_box(lower, upper)
-        shape = check_shape(shape)
-        if not isinstance(method, str) or method not in POROSITY_METHODS:
-            raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
-        per_axis = not isinstance(subdivisions, (int, np.integer))
-        s = check_subdivisions(subdivisions)
-        if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
-            raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
-        h = (hi - lo) / np.asarray(shape)
-        if method == "midpoint":
-            s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
-        cells = int(np.prod(shape))
-        if POROSITY_METHODS[method] == "sum":
-            need = 8 * cells + 32 * len(r)
-            check_budget(need, max_bytes, f"shape: {shape} cells need {format_bytes(need)}", "use fewer cells")
-        else:
-            need = porosity_bitmap_bytes(shape, s) * (1 if coll.name in ("mpi", "local") else 1 + coll.size)
-            need += 8 * cells + 32 * len(r)
-            check_budget(need, max_bytes, f"subdivisions: {s} on shape {shape} need {format_bytes(need)}", "coarsen")
+        gathered = coll.name not in ("mpi", "local")  # the OR by gathering holds every rank's bitmap
+        lo, hi, shape, s, h, sub = porosity_plan(
+            lower, upper, shape, method, subdivisions, midpoint_algorithm, len(r), max_bytes,
+            bitmaps=1 + coll.size if gathered else 1,
+        )  # fmt: skip
         digest = _fingerprint(lo, hi, np.asarray(shape), np.asarray(s), method, midpoint_algorithm)
         if not np.array_equal(coll.allreduce_host(digest, "min"), digest):
             raise ValueError("lower: the ranks passed different boxes, shapes, methods or subdivisions")
@@ -1249,7 +1231,6 @@ def porosity_distributed(
                 "cell volumes of sphere); use larger cells"
             )
         return 1.0 - flat.numpy().reshape(shape).astype(np.float64) * 2.0**-FIXED_POINT_BITS
-    sub = tuple(int(x) * k for x, k in zip(shape, s, strict=True))
     hs = h / np.asarray(s)
     algorithm = midpoint_algorithm
     if method == "midpoint" and algorithm is None:
