@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_lamp import LampGrid, ShiningLamp, porosity
+from warp_lamp import LAMPS, LampGrid, ShiningLamp, porosity
 from warp_lamp.distributed import DistributedLamp, enclosing_grid, porosity_distributed
 from warp_lamp.scenes import scene_lattice_box
 
@@ -112,6 +112,13 @@ def lamp_case(coll, name, centers, radii, grid, split, *, active=None, in_frame=
     out.append({"case": f"{tag}: lit and skipped", "ok": bool(same)})
     if options.get("follow"):
         out.append(_compare(f"{tag}: follow shift", lamp.follow_shift.numpy(), ref.follow_shift.numpy()))
+    if options.get("walls"):
+        # Every rank holds the walls' counts of the whole grid; the owner maps (global ids = the reference's rows)
+        # with the walls applied, and the walls' maps, are the whole grid's too.
+        out.append(_compare(f"{tag}: wall forces", lamp.wall_forces_numpy(PRESSURE), ref.wall_forces_numpy(PRESSURE)))
+        maps = ("owners", "wall_owners")
+        same = all(np.array_equal(getattr(diag.lamp, m)[k], getattr(ref_diag, m)[k]) for m in maps for k in LAMPS)
+        out.append({"case": f"{tag}: owners and wall owners", "ok": bool(same and np.abs(ref_diag.wall_counts).sum())})
     # Warm again on another split: the rank's keys still name its old particles (a migration); the seed then offers
     # what the depth pass would, so the result is the same.
     moved = split_rows("random" if split != "random" else "interleaved", centers, coll.rank, coll.size, seed=11)
@@ -125,7 +132,7 @@ def lamp_case(coll, name, centers, radii, grid, split, *, active=None, in_frame=
 
 def lamp_cases(coll, *, quick: bool = False) -> list[dict]:
     """Criteria 0 and 1, a lamp subset, the area criterion, world positions in a turned frame with the following
-    grid, invalid and inactive particles: each on every split."""
+    grid, invalid and inactive particles, walls: each on every split."""
     out = []
     lattice = scenes("lattice")
     rand = scenes("random")
@@ -136,6 +143,8 @@ def lamp_cases(coll, *, quick: bool = False) -> list[dict]:
     c_bad[5] = np.nan
     r_bad[9] = 0.0
     active = (np.arange(len(r_bad)) % 7 != 3).astype(np.int32)
+    # A platen under the body's lower part and a tilted wall across a corner.
+    walls = [((0.0, 0.0, 1.5), (0.0, 0.0, 1.0)), ((4.2, 0.0, 0.0), (-1.0, 0.2, 0.1))]
     splits = ("random", "spatial") if quick else SPLITS
     for split in splits:
         out += lamp_case(coll, "criterion 0, lattice ties", *lattice, g_lat, split, criterion=0)
@@ -146,11 +155,16 @@ def lamp_cases(coll, *, quick: bool = False) -> list[dict]:
         )
         out += lamp_case(coll, "area, subpoints, D=3", *rand, g_rand, split, criterion="area", depth_slots=3)
         out += lamp_case(coll, "criterion 1, invalid and inactive", c_bad, r_bad, g_rand, split, active=active)
+        out += lamp_case(coll, "criterion 1, walls", *rand, g_rand, split, walls=walls)
         if not quick:
             out += lamp_case(coll, "area, lattice ties, D=2", *lattice, g_lat, split, criterion="area", depth_slots=2)
             out += lamp_case(
                 coll, "criterion 1, turned frame, world, follow", *rand, turn, split, in_frame=False, follow=True
             )
+            out += lamp_case(
+                coll, "criterion 0, walls, turned frame, world, follow", *rand, turn, split, in_frame=False,
+                follow=True, criterion=0, walls=walls,
+            )  # fmt: skip
     return out
 
 

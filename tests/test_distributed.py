@@ -17,6 +17,7 @@ from helpers import polydisperse_scene
 
 from warp_lamp import LampGrid, ShiningLamp
 from warp_lamp.distributed import (
+    FRAMES_REFUSAL,
     WETTED_REFUSAL,
     DistributedLamp,
     LocalCollective,
@@ -24,6 +25,8 @@ from warp_lamp.distributed import (
     porosity_fixed_units,
 )
 from warp_lamp.kernels import distributed as dist_kernels
+from warp_lamp.kernels import lamp as lamp_kernels
+from warp_lamp.pipeline import LampFrame
 from warp_lamp.reference.area import ordered_key
 from warp_lamp.reference.distributed import (
     EMPTY_KEY,
@@ -31,7 +34,9 @@ from warp_lamp.reference.distributed import (
     global_keys_reference,
     merge_lists_reference,
     scatter_reference,
+    scatter_walls_reference,
 )
+from warp_lamp.validate import check_walls
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -180,6 +185,68 @@ def test_scatter_reference(device):
     assert np.array_equal(counts.numpy().reshape(n, 3), want)
 
 
+def test_unflip_restores_the_keys(device):
+    """dist_unflip after keys flipped for an int64 reduction gives the unflipped keys back, EMPTY included."""
+    rng = np.random.default_rng(11)
+    keys = ordered_key(rng.normal(size=300).astype(np.float32), rng.integers(0, 40, 300))
+    keys[::5] = EMPTY_KEY
+    gids = rng.permutation(1000)[:40].astype(np.int32)
+    out = wp.empty(len(keys), dtype=wp.uint64, device=device)
+    k = wp.array(keys, dtype=wp.uint64, device=device)
+    g = wp.array(gids, dtype=wp.int32, device=device)
+    wp.launch(dist_kernels.dist_keys_to_global, dim=len(keys), inputs=[k, g, 1], outputs=[out], device=device)
+    wp.launch(dist_kernels.dist_unflip, dim=len(keys), outputs=[out], device=device)
+    assert np.array_equal(out.numpy(), global_keys_reference(keys, gids))
+
+
+def test_scatter_walls_reference(device):
+    """dist_scatter_walls against its reference: rays that a wall stops, blocks or lets through (as
+    lamp_walled_owners decides them on the reduced keys), cells of this rank, of another rank and EMPTY, with a
+    caller permutation: the rank's counts, and the walls' counts of the whole grid."""
+    rng = np.random.default_rng(12)
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.25)
+    cells = grid.n_cells
+    n = 40
+    gids = np.sort(rng.choice(1000, size=n, replace=False)).astype(np.int32)
+    caller = rng.permutation(n).astype(np.int32)
+    keys = ordered_key(rng.uniform(-1.0, 3.0, 2 * cells).astype(np.float32), rng.integers(0, n, 2 * cells))
+    keys[rng.random(2 * cells) < 0.2] = EMPTY_KEY
+    reduced = global_keys_reference(keys, gids)
+    other = rng.random(2 * cells) < 0.4
+    reduced[other] = ordered_key(rng.uniform(-1.0, 3.0, other.sum()), rng.integers(1000, 2000, other.sum()))
+    reduced[rng.random(2 * cells) < 0.1] = EMPTY_KEY
+    walls = [((0.0, 0.0, 1.0), (0.0, 0.0, 1.0)), ((2.2, 0.0, 0.0), (-1.0, 0.3, 0.2))]
+    frame = LampFrame(grid, device, walls=check_walls(walls))
+    rays, view = frame.rays(True), frame.walls_view(True)
+    red = wp.array(reduced, dtype=wp.uint64, device=device)
+    walled = wp.zeros(2 * cells, dtype=wp.int32, device=device)
+    wp.launch(lamp_kernels.lamp_walled_owners, dim=cells, inputs=[rays, red, view], outputs=[walled], device=device)
+    walled = walled.numpy()
+    mine = (reduced == global_keys_reference(keys, gids)) & (reduced != EMPTY_KEY)
+    assert (walled <= -2).sum() > 20 and ((walled >= 0) & mine).sum() > 20 and ((walled == -1) & mine).sum() > 5
+    axis = np.concatenate([np.full(int(grid.counts[a, 0] * grid.counts[a, 1]), a) for a in range(3)])
+    want, want_walls = scatter_walls_reference(reduced, keys, gids, caller, axis, n, walled, len(walls))
+    counts = wp.zeros(3 * n, dtype=wp.int64, device=device)
+    wall_counts = wp.zeros(3 * len(walls), dtype=wp.int64, device=device)
+    wp.launch(
+        dist_kernels.dist_scatter_walls,
+        dim=cells,
+        inputs=[
+            rays,
+            wp.array(keys, dtype=wp.uint64, device=device),
+            wp.array(gids, dtype=wp.int32, device=device),
+            wp.array(caller, dtype=wp.int32, device=device),
+            red,
+            view,
+        ],
+        outputs=[counts, wall_counts],
+        device=device,
+    )
+    assert np.array_equal(counts.numpy().reshape(n, 3), want)
+    assert np.array_equal(wall_counts.numpy().reshape(-1, 3), want_walls)
+    assert np.abs(want_walls).sum() > 0
+
+
 def test_merge_rounds_reference(device):
     """D rounds of dist_merge_offer, a MIN over ranks and dist_merge_take give, per list, the D smallest distinct
     keys of the union of the ranks' lists (shared keys, EMPTY tails, lists all EMPTY), as the reference."""
@@ -240,6 +307,31 @@ def test_fixed_point_overflow_is_refused():
         porosity_distributed(None, centers, [200.0], (0, 0, 0), (1, 1, 1), (1, 1, 1), method="centroid")
 
 
+def test_porosity_checks_are_porositys():
+    """porosity_distributed checks its box and options with porosity's own code: a bad method is named alike, and
+    its budget counts the bitmaps that NCCL's OR by gathering holds (1 + ranks), refused on every rank."""
+    from warp_lamp import porosity
+    from warp_lamp.distributed import porosity_distributed
+
+    c = np.array([[0.5, 0.5, 0.5]])
+    for call in (porosity, lambda *a, **k: porosity_distributed(None, *a, **k)):
+        with pytest.raises(ValueError, match=r"method: unknown 'voxels'; expected one of"):
+            call(c, [0.2], (0, 0, 0), (1, 1, 1), (4, 4, 4), method="voxels")
+    # 64^3 sub-cells: a 32 KiB bitmap; 100 KiB holds one (MPI) but not three (NCCL on 2 ranks).
+    args = (c, [0.2], (0, 0, 0), (1, 1, 1), (8, 8, 8))
+    porosity_distributed(None, *args, subdivisions=8, max_bytes=100_000)
+
+    def run(coll):
+        try:
+            porosity_distributed(coll, *args, subdivisions=8, max_bytes=100_000)
+        except (ValueError, RuntimeError) as e:
+            return str(e)
+        return None
+
+    got = run_ranks(fake_nccl_collectives(2), run)
+    assert all(m is not None and "3 bitmaps of 32,768 bytes" in m for m in got), got
+
+
 def test_or_gathered(device):
     """dist_or_gathered is the bitwise OR of every rank's words."""
     rng = np.random.default_rng(6)
@@ -289,6 +381,60 @@ def test_bad_ids_are_refused():
     assert str(err.value) == WETTED_REFUSAL
     with pytest.raises(TypeError, match="comm: expected an mpi4py communicator"):
         as_collective(object())
+
+
+def test_frames_and_area_walls_are_refused():
+    """Frame averaging is refused by name with what to do instead; walls with the area criterion as ShiningLamp
+    refuses them; a bad option is named as ShiningLamp names it (the options are checked by the same code)."""
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
+    with pytest.raises(ValueError) as err:
+        DistributedLamp(grid, None, frames=4)
+    assert str(err.value) == FRAMES_REFUSAL
+    platen = [((0.0, 0.0, 0.5), (0.0, 0.0, 1.0))]
+    with pytest.raises(ValueError, match="walls: only with criteria 0 and 1"):
+        DistributedLamp(grid, None, criterion="area", walls=platen)
+    with pytest.raises(ValueError, match="depth_slots: expected an integer in"):
+        DistributedLamp(grid, None, criterion="area", depth_slots=9)
+
+
+def test_distributed_lamp_is_the_pipeline(device):
+    """DistributedLamp is a ShiningLamp whose frame and estimator are the distributed variants: apply, the
+    float32 and exact forces, force factors, the resultant in diagnostics, and the wall forces are the lamp's own
+    stages, equal on one rank to ShiningLamp's; add_forces before update and a reserve for other particles are
+    refused by name."""
+    from warp_lamp.distributed import AgreedFrame, DistributedAreaSplit, DistributedFirstHit
+
+    rng = np.random.default_rng(13)
+    c, r = polydisperse_scene(rng, n=200)
+    grid = LampGrid.enclosing(c, r, cells_per_diameter=3)
+    platen = [((0.0, 0.0, float(np.median(c[:, 2]))), (0.0, 0.0, 1.0))]
+    pos = wp.array(c.astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
+    ref = ShiningLamp(grid, walls=platen, device=device)
+    ref.update(pos, rad)
+    lamp = DistributedLamp(grid, None, walls=platen, device=device)
+    assert isinstance(lamp, ShiningLamp) and isinstance(lamp.frame, AgreedFrame)
+    assert isinstance(lamp.estimator, DistributedFirstHit) and "rank 0 of 1" in repr(lamp)
+    assert isinstance(DistributedLamp(grid, None, criterion="area").estimator, DistributedAreaSplit)
+    lamp.set_ids(np.arange(len(r)))
+    forces = wp.zeros(len(r), dtype=wp.vec3, device=device)
+    with pytest.raises(RuntimeError, match=r"call DistributedLamp.update \(or apply\) first"):
+        lamp.add_forces(forces, 1e5)
+    with pytest.raises(ValueError, match="n: set_ids named 200 particles"):
+        lamp.reserve(300)
+    lamp.apply(pos, rad, forces, 1e5)
+    want = wp.zeros(len(r), dtype=wp.vec3, device=device)
+    ref.add_forces(want, 1e5)
+    assert np.array_equal(forces.numpy(), want.numpy())
+    assert np.array_equal(lamp.force_factors(1e5), ref.force_factors(1e5))
+    assert np.array_equal(lamp.forces_numpy(1e5), ref.forces_numpy(1e5))
+    assert np.array_equal(lamp.wall_forces_numpy(1e5), ref.wall_forces_numpy(1e5))
+    assert np.abs(ref.wall_forces_numpy(1e5)).sum() > 0
+    got = lamp.diagnostics(c, 1e5)
+    want_diag = ref.diagnostics(c, 1e5)
+    assert got.ranks == 1 and got.n_global == len(r) and got.reduction_bytes == 16 * grid.n_cells
+    assert np.array_equal(got.lamp.force, want_diag.force) and np.array_equal(got.lamp.moment, want_diag.moment)
+    assert np.array_equal(got.lamp.wall_forces, want_diag.wall_forces)
 
 
 def test_ranks_refuse_together():

@@ -25,8 +25,14 @@ details make that hold:
   to this rank exactly when the reduced key equals the rank's own key with its global id: no map from global ids
   back to local indices is needed (no array of N_global entries, no search).
 
-Not distributed: the wetted surface (``surfaces="all"``, see :data:`WETTED_REFUSAL`) and frame averaging (build one
-:class:`DistributedLamp` per frame grid, ``LampGrid.rotated``).
+The distributed lamp is the lamp's pipeline (:mod:`warp_lamp.pipeline`) with two stages swapped for distributed
+variants, not a second lamp: :class:`AgreedFrame` reduces the following grid's box over the ranks, and the
+estimators :class:`DistributedFirstHit` and :class:`DistributedAreaSplit` run the one-device seed and depth pass,
+then their own steps (keys to global ids, the reduction, the scatter to the rank's own particles).
+:class:`DistributedLamp` is a :class:`~warp_lamp.ShiningLamp` built from them; its forces are the pipeline's.
+
+Not distributed: the wetted surface (``surfaces="all"``, see :data:`WETTED_REFUSAL`) and frame averaging
+(:data:`FRAMES_REFUSAL`).
 
 Porosity (:func:`porosity_distributed`): the sum methods add int64 fixed-point units per cell (integer sums do not
 depend on the order or the split) and reduce them by SUM; the union methods mark a sub-cell bitmap per rank and
@@ -42,43 +48,24 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-# The coupling to the lamp's pipeline, all of it: public helpers (owner maps, diagnostics, the area units), and
-# three internals, its criterion check and its automatic split and order of the depth pass, so that both lamps
-# share out the work alike (the result depends on neither).
-from warp_lamp.estimators import (
-    AREA_EXACT_UNIT,
-    AREA_RESOLVERS,
-    LampDiagnostics,
-    _auto_order,
-    _auto_split,
-    lamp_owner_maps,
-)
-from warp_lamp.frames import lamp_force_factors, lamp_pressure
+from warp_lamp.estimators import AreaSplit, FirstHit, LampDiagnostics
 from warp_lamp.grid import LampGrid
-from warp_lamp.kernels import area as area_kernels
 from warp_lamp.kernels import distributed as dist_kernels
 from warp_lamp.kernels import lamp as lamp_kernels
-from warp_lamp.kernels.footprint import RAY_CORNER
-from warp_lamp.lamp import _check_criterion
+from warp_lamp.lamp import LampOptions, ShiningLamp
+from warp_lamp.pipeline import LampFrame, LampInput, lamp_input
 from warp_lamp.porosity import (
     POROSITY_METHODS,
     count_bitmap,
-    midpoint_subdivisions,
-    porosity_bitmap_bytes,
     porosity_mark_union,
+    porosity_plan,
 )
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
-    check_box,
     check_budget,
-    check_force_range,
     check_integer,
-    check_particle_arrays,
     check_particles,
     check_positive,
-    check_shape,
-    check_subdivisions,
-    check_warp_array,
     format_bytes,
     lamp_mask,
     lamp_rotation,
@@ -86,9 +73,13 @@ from warp_lamp.validate import (
 
 __all__ = [
     "FIXED_POINT_BITS",
+    "FRAMES_REFUSAL",
     "WETTED_REFUSAL",
+    "AgreedFrame",
     "Collective",
+    "DistributedAreaSplit",
     "DistributedDiagnostics",
+    "DistributedFirstHit",
     "DistributedLamp",
     "LocalCollective",
     "MPICollective",
@@ -110,14 +101,18 @@ WETTED_REFUSAL = (
     "rank scatters the loads of its own spheres. Use surfaces='first'"
 )
 
+#: Why frame averaging is not distributed, and what to do instead.
+FRAMES_REFUSAL = (
+    "frames: frame averaging is not distributed; build one DistributedLamp per frame grid (grid.rotated(R) for R in "
+    "frames.lamp_frame_rotations(K)) and average their forces"
+)
+
 #: Fractional bits of the fixed-point porosity sums: units of 2^-40 of a cell's volume.
 FIXED_POINT_BITS = 40
 
 #: Largest global id: ids go into the low 32 bits of a key as int32.
 _MAX_ID = (1 << 31) - 2
-_EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
 _TOP = np.uint64(0x8000000000000000)
-_N_DIAG = lamp_kernels.N_DIAG + 2
 
 _OPS = ("min", "max", "sum", "bor")
 _WP_DTYPES = {
@@ -486,7 +481,7 @@ def _check_ids(global_ids, n: int | None = None) -> np.ndarray | wp.array:
     return ids.astype(np.int32)
 
 
-# --- the lamp -----------------------------------------------------------------------------------------------------
+# --- the lamp: the pipeline's stages, distributed -------------------------------------------------------------------
 
 
 @dataclass
@@ -496,7 +491,8 @@ class DistributedDiagnostics:
     Attributes:
         lamp: The rank's :class:`~warp_lamp.LampDiagnostics`: its own particles' counts and surface flags; owners
             as global ids and depths of the reduced keys (the whole grid's); lit cells of the whole grid; invalid
-            and outside particles summed over ranks.
+            and outside particles summed over ranks; the walls' counts (the whole grid's, the same on every rank);
+            with a pressure, the resultant of the rank's own particles.
         ranks: Number of ranks.
         n_global: Particles over all ranks.
         reduction_bytes: Bytes each rank hands to the collective library per update (:attr:`DistributedLamp.
@@ -509,12 +505,292 @@ class DistributedDiagnostics:
     reduction_bytes: int
 
 
-class DistributedLamp:
+class AgreedFrame(LampFrame):
+    """The lamp's frame on one rank: with ``follow``, the body's box is reduced over the ranks between the box and
+    the move (``LampFrame.launch_agree_bounds``), so that every rank moves the grid alike."""
+
+    def __init__(self, grid: LampGrid, device, comm: Collective, **options):
+        super().__init__(grid, device, **options)
+        self.comm = comm
+        #: Bytes handed to the collective per update: the box's six float32.
+        self.reduction_bytes = 24 if self.follow else 0
+
+    def launch_agree_bounds(self) -> None:
+        """The box over all ranks: the maxima negated, one all-reduce MIN of the six, negated back."""
+        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=self.device)
+        self.comm.allreduce(self._bounds, "min")
+        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=self.device)
+
+
+def _reduction_budget(grid: LampGrid, depth_slots: int, area: bool, max_bytes) -> None:
+    """Refuse, before anything is allocated, keys whose reduction buffers exceed ``max_bytes``."""
+    samples = grid.n_samples if area else grid.n_cells
+    n_keys = 2 * depth_slots * samples
+    # The rank's keys, their global-id copy (sent, then reduced in place), and for the area criterion the merged
+    # lists and one round's buffer.
+    need = 2 * n_keys * 8 + (n_keys * 8 + 2 * samples * 8 if area else 0)
+    check_budget(
+        need,
+        max_bytes,
+        f"grid: {n_keys:,} keys per rank and their reduction buffers need {format_bytes(need)}",
+        "use larger cells",
+    )
+
+
+class _RankSteps:
+    """What the distributed estimators add to the one-device ones, mixed in before :class:`FirstHit` or
+    :class:`AreaSplit` (whose seed, depth pass and owner maps they reuse): the rank's particles named by global ids
+    and put in id order before the steps, the keys rewritten with global ids (:meth:`launch_to_global`), and the
+    diagnostics of the reduced keys. Subclasses add the reduction and the scatter to the rank's own particles."""
+
+    #: The steps: the one-device seed and depth pass on the rank's particles, then the collective ones.
+    steps = ("seed", "depth", "to_global", "reduce", "scatter")
+    #: Whether :meth:`launch_to_global` flips the keys' top bit for a library that reduces int64 (the area
+    #: criterion's merge flips its own offers instead).
+    _flips_keys = True
+
+    def _init_ranks(self, comm: Collective) -> None:
+        self.comm = comm
+        d = self.device
+        self._flip = 1 if comm.flip_keys else 0
+        self._no_int = wp.empty(0, dtype=wp.int32, device=d)
+        #: Global id of each particle in id order (the depth pass's local index order), set by :meth:`place`.
+        self.gids = self._no_int
+        #: The caller's row of each particle in id order; empty where the caller's order is already ascending.
+        self.caller = self._no_int
+        self.n_global = 0
+        self._sorted = None
+        #: The keys with global ids: what this rank sends; for criteria 0 and 1, after the reduction, the reduced
+        #: keys of all ranks.
+        self.reduced = wp.empty(self.keys.shape[0], dtype=wp.uint64, device=d)
+        self.nbytes += self.reduced.shape[0] * 8
+
+    def place(self, gids: wp.array, caller: wp.array, n_global: int) -> None:
+        """The rank's particles, named (``DistributedLamp.set_ids``; not inside a capture): their global ids in id
+        order, the caller's rows, and the ids' span over all ranks. Makes room for them (as ``reserve``)."""
+        n = gids.shape[0]
+        self.gids, self.caller, self.n_global = gids, caller, n_global
+        # FirstHit.reserve only grows its buffers: start again, so that the split and order fit these particles.
+        self.counts = wp.zeros(0, dtype=wp.int64, device=self.device)
+        self.order = self._no_order
+        self.reserve(n)
+        self._ordered_n = -1
+        if caller.shape[0]:
+            d = self.device
+            self._sorted = (
+                wp.empty(n, dtype=wp.vec3, device=d),
+                wp.empty(n, dtype=wp.float32, device=d),
+                wp.empty(n, dtype=wp.int32, device=d),
+            )
+
+    def update(self, inp: LampInput) -> None:
+        """The particles in global-id order (so that ties go to the lowest id, as on one device), then the steps."""
+        super().update(self._in_id_order(inp))
+
+    def _in_id_order(self, inp: LampInput) -> LampInput:
+        if not self.caller.shape[0] or inp.n == 0:
+            return inp
+        pos, rad, act = self._sorted
+        p = inp.particles
+        wp.launch(
+            dist_kernels.dist_gather_particles,
+            dim=inp.n,
+            inputs=[p.positions, p.radii, p.active, self.caller],
+            outputs=[pos, rad, act],
+            device=self.device,
+        )
+        sorted_particles = lamp_kernels.LampParticles()
+        sorted_particles.positions, sorted_particles.radii = pos, rad
+        sorted_particles.active = p.active if inp.active is None else act  # an empty mask stays empty
+        sorted_particles.n = inp.n
+        return LampInput(sorted_particles, inp.n, inp.in_frame, inp.active)
+
+    def launch_to_global(self) -> None:
+        """Update step: the rank's keys with global ids, into :attr:`reduced`."""
+        wp.launch(
+            dist_kernels.dist_keys_to_global,
+            dim=self.keys.shape[0],
+            inputs=[self.keys, self.gids, self._flip if self._flips_keys else 0],
+            outputs=[self.reduced],
+            device=self.device,
+        )
+
+    def _surface(self, owners: dict) -> np.ndarray:
+        # The owners are global ids: a particle is lit where its id owns a cell; its flag goes to its caller row.
+        surface = np.zeros(self.n, dtype=bool)
+        if self.n:
+            lit = np.unique(np.concatenate([own[own >= 0].ravel() for own in owners.values()]))
+            rows = self.caller.numpy() if self.caller.shape[0] else np.arange(self.n)
+            surface[rows[np.isin(self.gids.numpy(), lit)]] = True
+        return surface
+
+    def diagnostics(self) -> LampDiagnostics:
+        """The one-device diagnostics of the reduced keys, with the skip counters summed over ranks (collective)."""
+        out = super().diagnostics()
+        skipped = self.comm.allreduce_host(self.diag.numpy()[:2].astype(np.int64), "sum")
+        out.invalid, out.outside = int(skipped[0]), int(skipped[1])
+        return out
+
+
+class DistributedFirstHit(_RankSteps, FirstHit):
+    """Criteria 0 and 1 on a rank's share of the particles: seed and depth pass on its own particles (local
+    indices), keys to global ids, an all-reduce MIN, and the scatter to the cells whose reduced key is the rank's
+    own (walls decided from the reduced key, the same on every rank)."""
+
+    name = "first hit, distributed"
+
+    def __init__(self, frame: LampFrame, lamp_mask: int, comm: Collective, *, criterion, split, order, max_bytes):
+        _reduction_budget(frame.grid, 1, False, max_bytes)
+        super().__init__(frame, lamp_mask, criterion=criterion, split=split, order=order, max_bytes=max_bytes)
+        self._init_ranks(comm)
+
+    @property
+    def reduction_bytes(self) -> int:
+        """The whole key array, 16 bytes per cell."""
+        return 8 * self.reduced.shape[0]
+
+    def launch_reduce(self) -> None:
+        """Update step: the all-reduce MIN of :attr:`reduced` (and the top bit flipped back where the library
+        reduced int64), so that it holds the keys one device holding every particle would."""
+        self.comm.allreduce(self.reduced, "min")
+        if self._flip:
+            wp.launch(dist_kernels.dist_unflip, dim=self.reduced.shape[0], outputs=[self.reduced], device=self.device)
+
+    def launch_scatter(self) -> None:
+        """Update step: +1 / -1 to the rank's own particles where the reduced key is theirs; with walls, the walls'
+        counts too (every rank counts them all)."""
+        inputs = [self._cells(), self.keys, self.gids, self.caller]
+        if self.frame.n_walls:
+            self.wall_counts.zero_()
+            wp.launch(
+                dist_kernels.dist_scatter_walls,
+                dim=self.grid.n_cells,
+                inputs=[*inputs, self.reduced, self.frame.walls_view(self._input.in_frame)],
+                outputs=[self.counts, self.wall_counts],
+                device=self.device,
+            )
+            return
+        if self.n == 0:
+            return
+        wp.launch(
+            dist_kernels.dist_scatter,
+            dim=self.grid.n_cells,
+            inputs=[*inputs, 0, self.reduced],  # 0: launch_reduce flipped the keys back
+            outputs=[self.counts],
+            device=self.device,
+        )
+
+    def _owner_keys(self) -> wp.array:
+        return self.reduced
+
+
+class DistributedAreaSplit(_RankSteps, AreaSplit):
+    """The area criterion on a rank's share: the D-slot lists merged over ranks (D rounds of MIN), the geometry of
+    every particle gathered into a table indexed by global id (an integer SUM of bit patterns), and the area kernel
+    on the whole grid with that table; each rank keeps its own particles' units."""
+
+    name = "area split, distributed"
+    _flips_keys = False
+
+    def __init__(self, frame: LampFrame, lamp_mask: int, comm: Collective, *, depth_slots, **options):
+        _reduction_budget(frame.grid, depth_slots, True, options["max_bytes"])
+        super().__init__(frame, lamp_mask, depth_slots=depth_slots, **options)
+        self._init_ranks(comm)
+        d = self.device
+        #: The merged D-slot lists (global ids), and one merge round's keys.
+        self.merged = wp.empty(self.keys.shape[0], dtype=wp.uint64, device=d)
+        self._round = wp.empty(2 * self.grid.n_samples, dtype=wp.uint64, device=d)
+        self.nbytes += self.merged.shape[0] * 8 + self._round.shape[0] * 8
+
+    @property
+    def reduction_bytes(self) -> int:
+        """D rounds of 16 bytes per corner sample, and 16 bytes per particle of the whole body."""
+        return 8 * self.keys.shape[0] + 16 * self.n_global
+
+    def place(self, gids: wp.array, caller: wp.array, n_global: int) -> None:
+        """As the criteria's, and the table of every particle (positions, radii, counts by global id)."""
+        super().place(gids, caller, n_global)
+        d = self.device
+        self._table_positions = wp.zeros(n_global, dtype=wp.vec3, device=d)
+        self._table_radii = wp.zeros(n_global, dtype=wp.float32, device=d)
+        self._table_counts = wp.zeros(3 * n_global, dtype=wp.int64, device=d)
+        table = lamp_kernels.LampParticles()
+        table.positions = self._table_positions
+        table.radii = self._table_radii
+        table.active = self._no_int
+        table.n = n_global
+        self._table = table
+        # int32 views of the table, for the integer SUM of its bit patterns (they alias the table's memory).
+        self._table_words = (
+            wp.array(ptr=self._table_positions.ptr, dtype=wp.int32, shape=(3 * n_global,), device=d),
+            self._table_radii.view(wp.int32),
+        )
+
+    def launch_reduce(self) -> None:
+        """Update step: the lists merged over ranks, and the table of every particle's geometry."""
+        d = self.device
+        lists = self._round.shape[0]
+        for k in range(self.depth_slots):
+            wp.launch(
+                dist_kernels.dist_merge_offer,
+                dim=lists,
+                inputs=[self.reduced, self.merged, self.depth_slots, k, self._flip],
+                outputs=[self._round],
+                device=d,
+            )
+            self.comm.allreduce(self._round, "min")
+            wp.launch(
+                dist_kernels.dist_merge_take,
+                dim=lists,
+                inputs=[self._round, self.depth_slots, k, self._flip],
+                outputs=[self.merged],
+                device=d,
+            )
+        self._table_positions.zero_()
+        self._table_radii.zero_()
+        if self.n:
+            wp.launch(
+                dist_kernels.dist_table_fill,
+                dim=self.n,
+                inputs=[self._input.particles.positions, self._input.particles.radii, self.gids],
+                outputs=[self._table_positions, self._table_radii],
+                device=d,
+            )
+        # Integer sums of bit patterns: only the owning rank's entry is nonzero, and x + 0 = x exactly.
+        for words in self._table_words:
+            self.comm.allreduce(words, "sum")
+
+    def launch_scatter(self) -> None:
+        """Update step: the area kernel on the whole grid, every particle's units by global id; the rank keeps its
+        own, in the caller's rows."""
+        self._table_counts.zero_()
+        self._launch_area_cells(self._table, self.merged, self._table_counts)
+        if self.n:
+            wp.launch(
+                dist_kernels.dist_counts_gather,
+                dim=self.n,
+                inputs=[self._table_counts, self.gids, self.caller],
+                outputs=[self.counts],
+                device=self.device,
+            )
+
+    def _owner_keys(self) -> wp.array:
+        return self.merged
+
+
+class DistributedLamp(ShiningLamp):
     """The shining lamp on particles split across ranks: each rank passes its own particles and their global ids,
     and gets its own particles' counts and forces, bitwise equal to one device holding all particles.
 
+    A :class:`~warp_lamp.ShiningLamp` whose pipeline has two distributed stages (``_stages``): its frame
+    (:class:`AgreedFrame`) agrees the following grid's box over the ranks, and its estimator
+    (:class:`DistributedFirstHit`, :class:`DistributedAreaSplit`) adds the reduction over the ranks to the one-device
+    steps; the forces are the pipeline's own stage. Everything else (``add_forces``, ``apply``, ``force_factors``,
+    ``forces_numpy``, ``wall_forces_numpy``, the pose arrays, the estimator's buffers and steps) is the lamp's.
+
     Collective calls (every rank must make them, in the same order): the constructor, :meth:`set_ids`,
-    :meth:`update`, :meth:`diagnostics`. :meth:`add_forces`, :meth:`counts_numpy` and :meth:`forces_numpy` are local.
+    :meth:`update` (and ``apply``), :meth:`diagnostics`. ``add_forces``, ``counts_numpy`` and ``forces_numpy`` are
+    local.
 
     Construction checks that every rank passed the same grid and options (a digest, all-reduced). :meth:`set_ids`
     (whenever the rank's particles change: migration) sorts the ids on the device, checks them and makes room for
@@ -525,6 +801,10 @@ class DistributedLamp:
     whole key array) or ``D`` rounds of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of
     the whole body (``"area"``), plus 24 bytes with ``follow``: :attr:`reduction_bytes`.
     """
+
+    def __new__(cls, *args, **kwargs):
+        # ShiningLamp.__new__ turns frames=K into a FrameAveragedLamp; here frames are refused by __init__.
+        return object.__new__(cls)
 
     def __init__(
         self,
@@ -541,6 +821,8 @@ class DistributedLamp:
         split: int | str = "auto",
         order: bool | str = "auto",
         surfaces: str = "first",
+        walls=None,
+        frames: int = 1,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ):
         """Allocate the rank's per-cell arrays and check that all ranks agree on the setup (collective).
@@ -561,99 +843,63 @@ class DistributedLamp:
                 it).
             order: Sort the depth pass's work by cell, as :class:`~warp_lamp.ShiningLamp`.
             surfaces: ``"first"`` only: ``"all"`` is refused (:data:`WETTED_REFUSAL`).
+            walls: Walls that bound the fluid, as :class:`~warp_lamp.ShiningLamp` (criteria 0 and 1): each ray's
+                wall is decided from the reduced key, the same on every rank, and every rank holds the walls'
+                counts (``wall_forces_numpy``).
+            frames: 1 only: frame averaging is refused (:data:`FRAMES_REFUSAL`).
             max_bytes: Budget for the rank's per-cell arrays [bytes].
         """
         if not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         if surfaces == "all":
             raise ValueError(WETTED_REFUSAL)
-        if surfaces != "first":
-            raise ValueError(f"surfaces: expected 'first' ('all' is not distributed), got {surfaces!r}")
-        if order not in ("auto", True, False):
-            raise ValueError(f"order: expected 'auto', True or False, got {order!r}")
-        if split != "auto" and (isinstance(split, bool) or not isinstance(split, (int, np.integer)) or split < 0):
-            raise ValueError(f"split: expected 'auto' or an integer >= 0, got {split!r}")
-        if resolver not in AREA_RESOLVERS:
-            raise ValueError(f"resolver: expected one of {AREA_RESOLVERS}, got {resolver!r}")
-        if follow not in (True, False):
-            raise ValueError(f"follow: expected True or False, got {follow!r}")
-        self.comm = as_collective(comm, device)
-        self.device = d = self.comm.device
-        self.grid = grid
-        self.criterion = _check_criterion(criterion)
-        self.lamp_mask = lamp_mask(lamps)
-        area = self.criterion == "area"
-        self.depth_slots = check_integer("depth_slots", depth_slots, minimum=1) if area else 1
-        if self.depth_slots > lamp_kernels.MAX_SLOTS:
-            raise ValueError(f"depth_slots: expected an integer in [1, {lamp_kernels.MAX_SLOTS}], got {depth_slots}")
-        self.subpoints = check_integer("subpoints", subpoints, minimum=1)
-        if self.subpoints > 16:
-            raise ValueError(f"subpoints: expected an integer in [1, 16], got {subpoints}")
-        self.resolver = resolver
-        self.unit = 1
-        if area:
-            self.unit = AREA_EXACT_UNIT if resolver == "exact" else self.subpoints**2
-        self._ray = int(RAY_CORNER) if area else self.criterion
-        if follow and not grid.is_box:
-            raise ValueError("follow: needs the box form of the grid (LampGrid(lower, upper, cell) or enclosing)")
-        self.follow = bool(follow)
-        samples = grid.n_samples if area else grid.n_cells
-        n_keys = 2 * self.depth_slots * samples
-        # The rank's keys, their global-id copy (sent, then reduced in place), and for the area criterion the
-        # merged lists and one round's buffer.
-        self.nbytes = 2 * n_keys * 8 + (n_keys * 8 + 2 * samples * 8 if area else 0)
-        check_budget(
-            self.nbytes,
-            max_bytes,
-            f"grid: {n_keys:,} keys per rank and their reduction buffers need {format_bytes(self.nbytes)}",
-            "use larger cells",
+        if frames != 1:
+            raise ValueError(FRAMES_REFUSAL)
+        options = LampOptions.checked(
+            criterion=criterion,
+            lamps=lamps,
+            depth_slots=depth_slots,
+            resolver=resolver,
+            subpoints=subpoints,
+            follow=follow,
+            split=split,
+            order=order,
+            surfaces=surfaces,
+            max_bytes=max_bytes,
+            walls=walls,
         )
+        self.comm = as_collective(comm, device)
         digest = _fingerprint(
-            grid.corner, grid.cell, grid.counts, grid.origin, grid.rotation, repr(self.criterion), self.lamp_mask,
-            self.depth_slots, self.resolver, self.subpoints, self.follow,
+            grid.corner, grid.cell, grid.counts, grid.origin, grid.rotation, repr(options.criterion),
+            lamp_mask(options.lamps), options.depth_slots, options.resolver, options.subpoints, options.follow,
+            options.walls,
         )  # fmt: skip
-        agreed = self.comm.allreduce_host(digest, "min")
-        if not np.array_equal(agreed, digest):
+        if not np.array_equal(self.comm.allreduce_host(digest, "min"), digest):
             raise ValueError(
                 "grid: the ranks passed different grids or options (criterion, lamps, depth_slots, resolver, "
-                "subpoints, follow); agree them first (enclosing_grid reduces the bounds)"
+                "subpoints, follow, walls); agree them first (enclosing_grid reduces the bounds)"
             )
-        self._split = split
-        self._order = order
-        self.split = 0
-        self.origin, self.rotation = grid.pose_arrays(d)
-        frame_pose = grid.pose_arrays(d, in_frame=True)
-        self._cells = {False: grid.params(self.origin, self.rotation), True: grid.params(*frame_pose)}
-        self._rays = {
-            False: grid.params(self.origin, self.rotation, corners=area),
-            True: grid.params(*frame_pose, corners=area),
-        }
-        self.keys = wp.full(n_keys, value=_EMPTY, dtype=wp.uint64, device=d)
-        #: The keys with global ids: what this rank sends; after an update, the reduced keys of all ranks
-        #: (criteria 0 and 1; top bit flipped where the library reduces int64).
-        self.reduced = wp.empty(n_keys, dtype=wp.uint64, device=d)
-        if area:
-            #: Area criterion: the merged D-slot lists (global ids), and one merge round's keys.
-            self.merged = wp.empty(n_keys, dtype=wp.uint64, device=d)
-            self._round = wp.empty(2 * samples, dtype=wp.uint64, device=d)
-        self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
-        self._flip = 1 if self.comm.flip_keys else 0
-        if self.follow:
-            self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=d)
-            self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=d)
-            base = grid.world_origin
-            self._follow_base = (
-                wp.vec3(*base.astype(np.float32)),
-                wp.vec3d(*base),
-                wp.vec3d(*grid.box_cell),
-                wp.vec3i(*grid.box_counts),
-            )
-        self._no_int = wp.empty(0, dtype=wp.int32, device=d)
-        self._no_pressure = wp.empty(0, dtype=wp.float32, device=d)
-        self.n = 0
+        self.choice = None
+        self._setup(grid, options, self.comm.device)
+        #: Particles over all ranks, and the span of their ids (set by :meth:`set_ids`).
+        self.n_total = 0
         self.n_global = 0
         self._ids_set = False
-        self._inputs = None
+
+    def _stages(self, grid: LampGrid, options: LampOptions, device) -> tuple[LampFrame, FirstHit]:
+        frame = AgreedFrame(grid, device, self.comm, follow=options.follow, walls=options.walls)
+        mask = lamp_mask(options.lamps)
+        shared = dict(split=options.split, order=options.order, max_bytes=options.max_bytes)
+        if options.criterion == "area":
+            area = dict(depth_slots=options.depth_slots, resolver=options.resolver, subpoints=options.subpoints)
+            return frame, DistributedAreaSplit(frame, mask, self.comm, **area, **shared)
+        return frame, DistributedFirstHit(frame, mask, self.comm, criterion=options.criterion, **shared)
+
+    def __repr__(self) -> str:
+        return (
+            f"DistributedLamp({self.estimator.name}, rank {self.comm.rank} of {self.comm.size} over "
+            f"{self.comm.name}, {self.grid!r}, device={self.device})"
+        )
 
     # --- particles ---------------------------------------------------------------------------------------------
 
@@ -716,60 +962,25 @@ class DistributedLamp:
             raise ValueError(
                 f"global_ids: the ranks hold {total} particles but the largest id is {top}: some id is on two ranks"
             )
+        no_int = self.estimator._no_int
+        gids = wp.clone(sort_keys[:n]) if n else no_int
+        self.estimator.place(gids, wp.clone(sort_values[:n]) if moved else no_int, n_global)
         self.n = n
         self.n_global = n_global
-        self.n_total = int(total)
-        #: Global id of each particle in id order (the depth pass's local index order).
-        self.gids = wp.clone(sort_keys[:n]) if n else wp.empty(0, dtype=wp.int32, device=d)
-        #: The caller's row of each particle in id order; empty where the caller's order is already ascending.
-        self.caller = wp.clone(sort_values[:n]) if moved else self._no_int
-        self.counts = wp.zeros(3 * n, dtype=wp.int64, device=d)
-        if moved:
-            self._sorted = (
-                wp.empty(n, dtype=wp.vec3, device=d),
-                wp.empty(n, dtype=wp.float32, device=d),
-                wp.empty(n, dtype=wp.int32, device=d),
-            )
-        self.split = _auto_split(n, d) if self._split == "auto" else int(self._split)
-        if self.depth_slots > 1 or self.criterion == "area":
-            self.split = max(self.split, 1)
-        sort = _auto_order(n, d) if self._order == "auto" else self._order
-        self.order = wp.empty(0, dtype=wp.int32, device=d)
-        self._no_order = self.order
-        if sort and self.split > 0 and n:
-            self.order = wp.empty(3 * n, dtype=wp.int32, device=d)
-            self._order_keys = wp.empty(2 * n, dtype=wp.int32, device=d)
-            self._order_ids = wp.empty(2 * n, dtype=wp.int32, device=d)
-        self._ordered = False
-        if self.criterion == "area":
-            self._table_positions = wp.zeros(n_global, dtype=wp.vec3, device=d)
-            self._table_radii = wp.zeros(n_global, dtype=wp.float32, device=d)
-            self._table_counts = wp.zeros(3 * n_global, dtype=wp.int64, device=d)
-            table = lamp_kernels.LampParticles()
-            table.positions = self._table_positions
-            table.radii = self._table_radii
-            table.active = self._no_int
-            table.n = n_global
-            self._table = table
-            # int32 views of the table, for the integer SUM of its bit patterns (they alias the table's memory).
-            self._table_words = (
-                wp.array(ptr=self._table_positions.ptr, dtype=wp.int32, shape=(3 * n_global,), device=d),
-                self._table_radii.view(wp.int32),
-            )
+        self.n_total = total
         self._ids_set = True
-        self._inputs = None
+        self._input = None
+
+    def reserve(self, n: int) -> None:
+        """:meth:`set_ids` makes room for the rank's particles; ``n`` must be their number."""
+        if check_integer("n", n) != self.n:
+            raise ValueError(f"n: set_ids named {self.n} particles; call set_ids with the new particles' ids")
 
     @property
     def reduction_bytes(self) -> int:
         """Bytes this rank hands to the collective library per update (the payload of its all-reduces; a ring
         all-reduce sends about 2 (P - 1) / P times that per rank)."""
-        n_keys = self.keys.shape[0]
-        total = 8 * n_keys if self.criterion != "area" else 8 * n_keys + 16 * self.n_global
-        return total + (24 if self.follow else 0)
-
-    def forget(self) -> None:
-        """Drop the rank's last owners, so that the next update runs cold (for benchmarks; results are equal)."""
-        wp.launch(lamp_kernels.lamp_forget, dim=self.keys.shape[0], outputs=[self.keys], device=self.device)
+        return self.estimator.reduction_bytes + self.frame.reduction_bytes
 
     # --- the update --------------------------------------------------------------------------------------------
 
@@ -785,323 +996,25 @@ class DistributedLamp:
         """
         if not self._ids_set:
             raise RuntimeError("update: no particles named yet; call DistributedLamp.set_ids(global_ids) first")
-        n = check_particle_arrays(positions, radii, active, self.device, "the lamp")
-        if n != self.n:
+        inp = lamp_input(positions, radii, active, self.device, self._no_active, in_frame=in_frame)
+        if inp.n != self.n:
             raise ValueError(
-                f"positions: {n} particles, but set_ids named {self.n}; call set_ids with the new particles' ids"
+                f"positions: {inp.n} particles, but set_ids named {self.n}; call set_ids with the new particles' ids"
             )
-        d = self.device
-        particles = lamp_kernels.LampParticles()
-        if self.caller.shape[0] and n:
-            pos, rad, act = self._sorted
-            wp.launch(
-                dist_kernels.dist_gather_particles,
-                dim=n,
-                inputs=[positions, radii, self._no_int if active is None else active, self.caller],
-                outputs=[pos, rad, act],
-                device=d,
-            )
-            particles.positions, particles.radii = pos, rad
-            particles.active = self._no_int if active is None else act
-        else:
-            particles.positions, particles.radii = positions, radii
-            particles.active = self._no_int if active is None else active
-        particles.n = n
-        self._inputs = (bool(in_frame), particles)
-        if self.follow and not in_frame:
-            self._launch_follow(particles)
-        if self.order.shape[0] and not self._ordered and not d.is_capturing:
-            self.reorder()
-        self._launch_seed()
-        self._launch_depth()
-        if self.criterion == "area":
-            self._reduce_area(particles)
-        else:
-            self._reduce_scatter()
-
-    def _launch_follow(self, particles) -> None:
-        origin32, origin, cell, box = self._follow_base
-        d = self.device
-        wp.launch(
-            lamp_kernels.lamp_follow_bounds,
-            dim=self.n,
-            inputs=[particles, origin32, self.rotation],
-            outputs=[self._bounds],
-            device=d,
-        )
-        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=d)
-        self.comm.allreduce(self._bounds, "min")
-        wp.launch(dist_kernels.dist_negate_upper, dim=3, outputs=[self._bounds], device=d)
-        wp.launch(
-            lamp_kernels.lamp_follow_shift,
-            dim=1,
-            inputs=[origin, cell, box, self.rotation],
-            outputs=[self._bounds, self.follow_shift, self.origin],
-            device=d,
-        )
-
-    def reorder(self) -> None:
-        """Sort the depth pass's work by the cell under each particle, at the last update's positions (a device
-        radix sort; not inside a capture), as ``ShiningLamp.reorder``."""
-        if not self.order.shape[0] or self._inputs is None:
-            return
-        in_frame, particles = self._inputs
-        n = self.n
-        for a in range(3):
-            wp.launch(
-                lamp_kernels.lamp_order_keys,
-                dim=n,
-                inputs=[self._rays[in_frame], particles, a],
-                outputs=[self._order_keys, self._order_ids],
-                device=self.device,
-            )
-            wp.utils.radix_sort_pairs(self._order_keys, self._order_ids, n)
-            wp.copy(self.order, self._order_ids, dest_offset=a * n, src_offset=0, count=n)
-        self._ordered = True
-
-    def _launch_seed(self) -> None:
-        """Clear the counts, and re-evaluate the rank's own last owners at the current positions."""
-        in_frame, particles = self._inputs
-        rays = self._rays[in_frame]
-        kernel, inputs = lamp_kernels.lamp_seed, [rays, particles, self._ray]
-        if self.depth_slots > 1:
-            kernel, inputs = lamp_kernels.lamp_seed_slots, [*inputs, self.depth_slots]
-        wp.launch(
-            kernel,
-            dim=max(rays.n_cells, self.n, _N_DIAG),
-            inputs=inputs,
-            outputs=[self.keys, self.counts, self.diag],
-            device=self.device,
-        )
-
-    def _launch_depth(self) -> None:
-        """The rank's particles offer their depths (local indices, in global-id order)."""
-        in_frame, particles = self._inputs
-        if self.n == 0:
-            return
-        if self.depth_slots > 1:
-            kernel = lamp_kernels.lamp_depth_slots
-        else:
-            kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
-        wp.launch(
-            kernel,
-            dim=self.n * (3 * self.split if self.split else 1),
-            inputs=[
-                self._rays[in_frame],
-                particles,
-                self._ray,
-                self.lamp_mask,
-                self.split,
-                self.depth_slots,
-                self.order if self._ordered else self._no_order,
-            ],
-            outputs=[self.keys, self.diag],
-            device=self.device,
-            block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
-        )
-
-    def launch_to_global(self) -> None:
-        """Update step: the rank's keys with global ids, into :attr:`reduced` (named for benchmarks)."""
-        wp.launch(
-            dist_kernels.dist_keys_to_global,
-            dim=self.keys.shape[0],
-            inputs=[self.keys, self.gids if self.n else self._no_int, self._flip],
-            outputs=[self.reduced],
-            device=self.device,
-        )
-
-    def launch_reduce(self) -> None:
-        """Update step: the all-reduce MIN of :attr:`reduced` (named for benchmarks, to time it alone)."""
-        self.comm.allreduce(self.reduced, "min")
-
-    def launch_scatter(self) -> None:
-        """Update step: +1 / -1 to the rank's own particles where the reduced key is theirs."""
-        in_frame, _ = self._inputs
-        wp.launch(
-            dist_kernels.dist_scatter,
-            dim=self.grid.n_cells,
-            inputs=[
-                self._cells[in_frame],
-                self.keys,
-                self.gids if self.n else self._no_int,
-                self.caller,
-                self._flip,
-                self.reduced,
-            ],
-            outputs=[self.counts],
-            device=self.device,
-        )
-
-    def _reduce_scatter(self) -> None:
-        self.launch_to_global()
-        self.launch_reduce()
-        if self.n:
-            self.launch_scatter()
-
-    def _reduce_area(self, particles) -> None:
-        """The area criterion: merge the D-slot lists over ranks (D rounds of MIN), gather the geometry of every
-        particle into a table indexed by global id (an integer SUM of bit patterns), and run the area kernel on
-        the whole grid with that table; each rank keeps its own particles' units."""
-        d = self.device
-        in_frame, _ = self._inputs
-        wp.launch(
-            dist_kernels.dist_keys_to_global,
-            dim=self.keys.shape[0],
-            inputs=[self.keys, self.gids if self.n else self._no_int, 0],
-            outputs=[self.reduced],
-            device=d,
-        )
-        lists = self._round.shape[0]
-        for k in range(self.depth_slots):
-            wp.launch(
-                dist_kernels.dist_merge_offer,
-                dim=lists,
-                inputs=[self.reduced, self.merged, self.depth_slots, k, self._flip],
-                outputs=[self._round],
-                device=d,
-            )
-            self.comm.allreduce(self._round, "min")
-            wp.launch(
-                dist_kernels.dist_merge_take,
-                dim=lists,
-                inputs=[self._round, self.depth_slots, k, self._flip],
-                outputs=[self.merged],
-                device=d,
-            )
-        self._table_positions.zero_()
-        self._table_radii.zero_()
-        self._table_counts.zero_()
-        if self.n:
-            wp.launch(
-                dist_kernels.dist_table_fill,
-                dim=self.n,
-                inputs=[particles.positions, particles.radii, self.gids],
-                outputs=[self._table_positions, self._table_radii],
-                device=d,
-            )
-        # Integer sums of bit patterns: only the owning rank's entry is nonzero, and x + 0 = x exactly.
-        for words in self._table_words:
-            self.comm.allreduce(words, "sum")
-        wp.launch(
-            area_kernels.area_cells,
-            dim=self.grid.n_cells,
-            inputs=[
-                self._cells[in_frame],
-                self._table,
-                self.merged,
-                self.depth_slots,
-                self._rays[in_frame].offset,
-                self.lamp_mask,
-                area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
-                self.subpoints,
-                self.unit,
-            ],
-            outputs=[self._table_counts, self.diag[2:]],
-            device=d,
-        )
-        if self.n:
-            wp.launch(
-                dist_kernels.dist_counts_gather,
-                dim=self.n,
-                inputs=[self._table_counts, self.gids, self.caller],
-                outputs=[self.counts],
-                device=d,
-            )
-
-    # --- forces (local) ----------------------------------------------------------------------------------------
-
-    def _force_area(self) -> np.ndarray:
-        return self.grid.cell_area / float(self.unit)
-
-    def force_factors(self, pressure) -> np.ndarray:
-        """F[j, a]: world force component j [N] per count on lamp axis a, as ``ShiningLamp.force_factors``."""
-        p, _ = lamp_pressure(pressure, self.grid.rotation)
-        check_force_range(p, self.grid.cell_area, self.grid.counts[:, 0] * self.grid.counts[:, 1])
-        return lamp_force_factors(p, self._force_area(), self.grid.rotation)
-
-    def add_forces(self, forces: wp.array, pressure) -> None:
-        """Add the rank's particles' forces of the last update to ``forces`` (caller's rows), in world coordinates;
-        as ``ShiningLamp.add_forces`` (float32, each the correctly rounded exact force).
-
-        Args:
-            forces: Force array [N], warp array of vec3 (float32), shape (>= N,); added to, not cleared.
-            pressure: Fluid pressure [Pa]: a number, three numbers, a stress tensor diagonal in the lamp frame, or
-                a warp float32 array of 1 or 3 values on the device.
-        """
-        if self._inputs is None:
-            raise RuntimeError("add_forces: no counts yet; call DistributedLamp.update first")
-        check_warp_array("forces", forces, wp.vec3, self.device, "the lamp", self.n)
-        const = wp.vec3d(0.0, 0.0, 0.0)
-        arr = self._no_pressure
-        if isinstance(pressure, wp.array):
-            check_warp_array("pressure", pressure, wp.float32, self.device, "the lamp")
-            if pressure.shape[0] not in (1, 3):
-                raise ValueError(f"pressure: a device array must hold 1 or 3 values, got {pressure.shape[0]}")
-            arr = pressure
-        else:
-            p, _ = lamp_pressure(pressure, self.grid.rotation)
-            cells = self.grid.counts[:, 0] * self.grid.counts[:, 1]
-            check_force_range(p, self.grid.cell_area, cells)
-            check_force_range(p, self.grid.cell_area, cells, float32=True)
-            const = wp.vec3d(*p)
-        if self.n > 0:
-            in_frame = self._inputs[0]
-            wp.launch(
-                lamp_kernels.lamp_add_forces,
-                dim=self.n,
-                inputs=[
-                    self.counts,
-                    wp.vec3d(*self._force_area()),
-                    self._cells[True].rotation if in_frame else self.rotation,
-                    const,
-                    arr,
-                ],
-                outputs=[forces],
-                device=self.device,
-            )
-
-    def counts_numpy(self) -> np.ndarray:
-        """The rank's signed counts of the last update, shape (N, 3), int64, in the caller's rows."""
-        return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
-
-    def forces_numpy(self, pressure) -> np.ndarray:
-        """The rank's exact float64 forces of the last update [N], shape (N, 3), caller's rows."""
-        c = self.counts_numpy()
-        f = self.force_factors(pressure)
-        return (c[:, :1] * f[:, 0] + c[:, 1:2] * f[:, 1]) + c[:, 2:3] * f[:, 2]
+        self._update(inp)
 
     def reduced_keys_numpy(self) -> np.ndarray:
         """The reduced keys of the last update (global ids), as ``ShiningLamp.keys``: criteria 0 and 1, two per
         cell; area criterion, the merged D-slot lists."""
-        if self.criterion == "area":
-            return self.merged.numpy()
-        keys = self.reduced.numpy()
-        return keys ^ _TOP if self._flip else keys
+        return self.estimator._owner_keys().numpy().copy()
 
-    def diagnostics(self) -> DistributedDiagnostics:
+    def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> DistributedDiagnostics:
         """Owners, depths and lit cells of the whole grid, the rank's counts and surface flags, and the skip
-        counters summed over ranks (collective: every rank must call it)."""
-        if self._inputs is None:
+        counters summed over ranks (collective: every rank must call it); arguments as
+        :meth:`ShiningLamp.diagnostics` (the resultants are of the rank's own particles)."""
+        if self._input is None:
             raise RuntimeError("diagnostics: no update yet")
-        keys = self.reduced_keys_numpy()
-        corners = self.criterion == "area"
-        if corners:
-            keys = keys.reshape(-1, self.depth_slots)[:, 0]
-        owners, depths = lamp_owner_maps(keys, self.grid, corners=corners)
-        lit = {name: int((own >= 0).sum()) for name, own in owners.items()}
-        mine = self.gids.numpy() if self.n else np.zeros(0, np.int32)
-        rows = self.caller.numpy() if self.caller.shape[0] else np.arange(self.n)
-        surface = np.zeros(self.n, dtype=bool)
-        lit_ids = np.unique(
-            np.concatenate([own[own >= 0].ravel() for own in owners.values()] + [np.zeros(0, np.int64)])
-        )
-        surface[rows[np.isin(mine, lit_ids)]] = True
-        diag = self.diag.numpy().astype(np.int64)
-        skipped = self.comm.allreduce_host(diag[:2].copy(), "sum")
-        out = LampDiagnostics(
-            self.counts_numpy(), self.unit, surface, owners, depths, lit, int(skipped[0]), int(skipped[1]),
-            int(diag[2]), int(diag[3]),
-        )  # fmt: skip
+        out = super().diagnostics(positions, pressure, moment_origin=moment_origin)
         return DistributedDiagnostics(out, self.comm.size, self.n_total, self.reduction_bytes)
 
 
@@ -1295,25 +1208,11 @@ def porosity_distributed(
     error = None
     try:
         c, r = check_particles(centers, radii)
-        lo, hi = check_box(lower, upper)
-        shape = check_shape(shape)
-        if not isinstance(method, str) or method not in POROSITY_METHODS:
-            raise ValueError(f"method: unknown {method!r}; expected one of {sorted(POROSITY_METHODS)}")
-        per_axis = not isinstance(subdivisions, (int, np.integer))
-        s = check_subdivisions(subdivisions)
-        if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
-            raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {midpoint_algorithm!r}")
-        h = (hi - lo) / np.asarray(shape)
-        if method == "midpoint":
-            s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
-        cells = int(np.prod(shape))
-        if POROSITY_METHODS[method] == "sum":
-            need = 8 * cells + 32 * len(r)
-            check_budget(need, max_bytes, f"shape: {shape} cells need {format_bytes(need)}", "use fewer cells")
-        else:
-            need = porosity_bitmap_bytes(shape, s) * (1 if coll.name in ("mpi", "local") else 1 + coll.size)
-            need += 8 * cells + 32 * len(r)
-            check_budget(need, max_bytes, f"subdivisions: {s} on shape {shape} need {format_bytes(need)}", "coarsen")
+        gathered = coll.name not in ("mpi", "local")  # the OR by gathering holds every rank's bitmap
+        lo, hi, shape, s, h, sub = porosity_plan(
+            lower, upper, shape, method, subdivisions, midpoint_algorithm, len(r), max_bytes,
+            bitmaps=1 + coll.size if gathered else 1,
+        )  # fmt: skip
         digest = _fingerprint(lo, hi, np.asarray(shape), np.asarray(s), method, midpoint_algorithm)
         if not np.array_equal(coll.allreduce_host(digest, "min"), digest):
             raise ValueError("lower: the ranks passed different boxes, shapes, methods or subdivisions")
@@ -1332,7 +1231,6 @@ def porosity_distributed(
                 "cell volumes of sphere); use larger cells"
             )
         return 1.0 - flat.numpy().reshape(shape).astype(np.float64) * 2.0**-FIXED_POINT_BITS
-    sub = tuple(int(x) * k for x, k in zip(shape, s, strict=True))
     hs = h / np.asarray(s)
     algorithm = midpoint_algorithm
     if method == "midpoint" and algorithm is None:

@@ -206,14 +206,14 @@ class FirstHit(Estimator):
             self._ordered_n = -1
 
     def update(self, inp: LampInput) -> None:
-        """Seed, depth pass, scatter."""
+        """Seed, depth pass, scatter: the :attr:`steps` in order (a subclass may add its own between them, as the
+        distributed lamp's reduction across processes, ``distributed.py``)."""
         self._input = inp
         self.n = inp.n
         if self.order.shape[0] and self._ordered_n != inp.n and not self.device.is_capturing:
             self.reorder()
-        self.launch_seed()
-        self.launch_depth()
-        self.launch_scatter()
+        for step in self.steps:
+            getattr(self, f"launch_{step}")()
 
     def forget(self) -> None:
         """Empty every key, so that the next update runs cold (benchmarks; the result is the same)."""
@@ -312,17 +312,13 @@ class FirstHit(Estimator):
         """Counts, surface flags, owner and depth maps, lit cells and skip counters (host copies)."""
         diag = self.diag.numpy().copy()
         counts = self.counts.numpy()[: 3 * self.n].reshape(self.n, 3).copy()
-        keys = self.keys.numpy().copy()
+        keys = self._owner_keys().numpy().copy()
         if self._corners:
             keys = keys.reshape(-1, self.depth_slots)[:, 0]
         owners, depths = lamp_owner_maps(keys, self.grid, corners=self._corners)
         wall_owners = self._walled_maps(owners, depths) if self.frame.n_walls and self._input is not None else None
-        surface = np.zeros(self.n, dtype=bool)
-        lit = {}
-        for name, own in owners.items():
-            hit = own >= 0
-            lit[name] = int(hit.sum())
-            surface[own[hit]] = True
+        lit = {name: int((own >= 0).sum()) for name, own in owners.items()}
+        surface = self._surface(owners)
         return LampDiagnostics(
             counts,
             self.unit,
@@ -338,13 +334,25 @@ class FirstHit(Estimator):
             wall_owners,
         )
 
+    def _owner_keys(self) -> wp.array:
+        """The keys the owner maps decode: the lamp's own (a hook: the distributed lamp's are reduced over ranks)."""
+        return self.keys
+
+    def _surface(self, owners: dict) -> np.ndarray:
+        """Whether each particle owns a cell of the owner maps (a hook: the distributed lamp's owners are global
+        ids, its particles held in the caller's rows)."""
+        surface = np.zeros(self.n, dtype=bool)
+        for own in owners.values():
+            surface[own[own >= 0]] = True
+        return surface
+
     def _walled_maps(self, owners: dict, depths: dict) -> dict:
         """Apply the walls to the owner and depth maps (in place), by the scatter's own decision; the walls' maps."""
         walled = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
         wp.launch(
             lamp_kernels.lamp_walled_owners,
             dim=self.grid.n_cells,
-            inputs=[self._cells(), self.keys, self.frame.walls_view(self._input.in_frame)],
+            inputs=[self._cells(), self._owner_keys(), self.frame.walls_view(self._input.in_frame)],
             outputs=[walled],
             device=self.device,
         )
@@ -406,10 +414,15 @@ class AreaSplit(FirstHit):
         """Step 3: each cell shares its units among the spheres visible in it."""
         if self.n == 0:
             return
+        self._launch_area_cells(self._input.particles, self.keys, self.counts)
+
+    def _launch_area_cells(self, particles, keys: wp.array, counts: wp.array) -> None:
+        # The area kernel on given spheres, keys and counts (the distributed lamp passes every rank's spheres by
+        # global id, the keys merged over ranks, and counts by global id).
         shared = [
             self._cells(),
-            self._input.particles,
-            self.keys,
+            particles,
+            keys,
             self.depth_slots,
             self._rays().offset,  # where each lamp's corner samples start among the keys
             self.lamp_mask,
@@ -430,7 +443,7 @@ class AreaSplit(FirstHit):
                 area_kernels.area_payout,
                 dim=self.grid.n_cells,
                 inputs=[self._cells(), self._sides, self.lamp_mask, shared[6]],
-                outputs=[self.counts, self.diag[2:]],
+                outputs=[counts, self.diag[2:]],
                 device=self.device,
                 block_dim=self.block_dim,
             )
@@ -439,7 +452,7 @@ class AreaSplit(FirstHit):
             area_kernels.area_cells,
             dim=self.grid.n_cells,
             inputs=shared,
-            outputs=[self.counts, self.diag[2:]],
+            outputs=[counts, self.diag[2:]],
             device=self.device,
             block_dim=self.block_dim,
         )

@@ -399,16 +399,21 @@ class ShiningLamp:
         self.surfaces = options.surfaces
         self.follow = options.follow
         self.lamp_mask = lamp_mask(options.lamps)
-        #: Stage 1 (and 2): the frame's pose and the grid's rays.
-        self.frame = LampFrame(grid, device, follow=options.follow, walls=options.walls)
-        #: Stage 3: who takes each ray's pressure, as counts per particle.
-        self.estimator = options.estimator(self.frame)
+        #: Stage 1 (and 2): the frame's pose and the grid's rays; stage 3, the estimator: who takes each ray's
+        #: pressure, as counts per particle.
+        self.frame, self.estimator = self._stages(grid, options, device)
         # A frame's share of an average (FrameAveragedLamp sets it on its lamps).
         self._weight = 1.0
         self._no_active = wp.empty(0, dtype=wp.int32, device=device)
         self._no_pressure = wp.empty(0, dtype=wp.float32, device=device)
         self._input: LampInput | None = None
         self.n = 0
+
+    def _stages(self, grid: LampGrid, options: LampOptions, device) -> tuple[LampFrame, Estimator]:
+        # The frame and the estimator these options ask for (a hook: DistributedLamp swaps in the variants that
+        # agree the following grid and reduce the keys across processes, distributed.py).
+        frame = LampFrame(grid, device, follow=options.follow, walls=options.walls)
+        return frame, options.estimator(frame)
 
     def __getattr__(self, name):
         # The estimator's buffers and steps (keys, diag, counts, unit, split, order, launch_seed, ...) read through
@@ -524,7 +529,7 @@ class ShiningLamp:
             ValueError: a constant pressure whose P A count leaves float32's range, or the exact range.
         """
         if self._input is None:
-            raise RuntimeError("add_forces: no counts yet; call ShiningLamp.update (or apply) first")
+            raise RuntimeError(f"add_forces: no counts yet; call {type(self).__name__}.update (or apply) first")
         check_warp_array("forces", forces, wp.vec3, self.device, "the lamp", self.n)
         launch_add_forces(
             self.estimator.counts,

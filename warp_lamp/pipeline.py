@@ -160,6 +160,7 @@ class LampFrame:
             outputs=[self._bounds],
             device=self.device,
         )
+        self.launch_agree_bounds()
         wp.launch(
             lamp_kernels.lamp_follow_shift,
             dim=1,
@@ -167,6 +168,10 @@ class LampFrame:
             outputs=[self._bounds, self.follow_shift, self.origin],
             device=self.device,
         )
+
+    def launch_agree_bounds(self) -> None:
+        """Between the box and the move: the box of the particles this process holds is the body's (a hook: where
+        the particles are split across processes, ``distributed.py`` reduces the box over them here)."""
 
     def frame_origin(self) -> np.ndarray:
         """The frame origin of the last update in frame coordinates [m], float64 (a device read with ``follow``)."""

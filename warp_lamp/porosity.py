@@ -34,6 +34,7 @@ __all__ = [
     "porosity_bitmap_bytes",
     "porosity_mark_union",
     "porosity_nbytes",
+    "porosity_plan",
 ]
 
 #: Methods of :func:`porosity`: sum kinds count overlaps twice and may go below zero; union kinds do not.
@@ -223,6 +224,52 @@ def _warn_outside(c, r, lo, hi) -> None:
         )
 
 
+def porosity_plan(
+    lower, upper, shape, method, subdivisions, midpoint_algorithm, n_spheres: int, max_bytes, *, bitmaps: int = 1
+) -> tuple:
+    """Check :func:`porosity`'s box and options, and its memory before anything is allocated (also for
+    ``distributed.porosity_distributed``, whose OR by gathering holds ``bitmaps`` bitmaps).
+
+    Args:
+        lower, upper, shape, method, subdivisions, midpoint_algorithm, max_bytes: As :func:`porosity`.
+        n_spheres: Spheres sent to the device.
+        bitmaps: Sub-cell bitmaps held at once (union methods).
+
+    Returns:
+        ``(lower, upper, shape, s, h, sub)``: the box [m] (float64), the cells, sub-cells per cell edge (cubic for
+        the midpoint method), the cell edges [m] and the sub-cells along x, y, z.
+    """
+    lo, hi = check_box(lower, upper)
+    shape = check_shape(shape)
+    if not isinstance(method, str) or method not in POROSITY_METHODS:
+        raise ValueError(f"method: unknown {format_value(method)}; expected one of {sorted(POROSITY_METHODS)}")
+    per_axis = not isinstance(subdivisions, (int, np.integer))
+    s = _subdivisions(subdivisions)
+    if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
+        raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {format_value(midpoint_algorithm)}")
+    max_bytes = check_max_bytes(max_bytes)
+    h = (hi - lo) / np.asarray(shape)
+    if method == "midpoint":
+        s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
+    sub = tuple(x * k for x, k in zip(shape, s, strict=True))
+    need = porosity_nbytes(shape, method=method, subdivisions=s, n_spheres=n_spheres)
+    if POROSITY_METHODS[method] == "sum":
+        what = f"shape: {shape} cells and {n_spheres:,} spheres need {format_bytes(need)}"
+        check_budget(need, max_bytes, what, "use fewer cells")
+    else:
+        bitmap = porosity_bitmap_bytes(shape, s)
+        need += (bitmaps - 1) * bitmap
+        held = f"a {format_bytes(bitmap)} bitmap" if bitmaps == 1 else f"{bitmaps} bitmaps of {format_bytes(bitmap)}"
+        what = (
+            f"subdivisions: {s} on shape {shape} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and {held}, "
+            f"{format_bytes(need)} in all"
+        )
+        check_budget(need, max_bytes, what, "lower subdivisions or use fewer cells")
+        if max(sub) > _MAX_SUB or bitmap // 4 >= 1 << 31:
+            raise ValueError(f"subdivisions: {s} on shape {shape} gives {sub} sub-cells, over the int32 indices")
+    return lo, hi, shape, s, h, sub
+
+
 def porosity(
     centers,
     radii,
@@ -293,32 +340,9 @@ def porosity(
     """
     device = check_device_match(device, centers=centers, radii=radii)  # a missing GPU: one line, naming device
     c, r = check_particles(centers, radii)
-    lo, hi = check_box(lower, upper)
-    shape = check_shape(shape)
-    if not isinstance(method, str) or method not in POROSITY_METHODS:
-        raise ValueError(f"method: unknown {format_value(method)}; expected one of {sorted(POROSITY_METHODS)}")
-    per_axis = not isinstance(subdivisions, (int, np.integer))
-    s = _subdivisions(subdivisions)
-    if isinstance(midpoint_algorithm, bool) or midpoint_algorithm not in (None, 1, 2):
-        raise ValueError(f"midpoint_algorithm: expected None, 1 or 2, got {format_value(midpoint_algorithm)}")
-    max_bytes = check_max_bytes(max_bytes)
-    h = (hi - lo) / np.asarray(shape)
-    if method == "midpoint":
-        s = midpoint_subdivisions(h, s if per_axis else s[0], per_axis=per_axis)
-    sub = tuple(x * k for x, k in zip(shape, s, strict=True))
-    need = porosity_nbytes(shape, method=method, subdivisions=s, n_spheres=len(r))
-    if POROSITY_METHODS[method] == "sum":
-        what = f"shape: {shape} cells and {len(r):,} spheres need {format_bytes(need)}"
-        check_budget(need, max_bytes, what, "use fewer cells")
-    else:
-        bitmap = porosity_bitmap_bytes(shape, s)
-        what = (
-            f"subdivisions: {s} on shape {shape} gives {sub[0] * sub[1] * sub[2]:,} sub-cells and a "
-            f"{format_bytes(bitmap)} bitmap, {format_bytes(need)} in all"
-        )
-        check_budget(need, max_bytes, what, "lower subdivisions or use fewer cells")
-        if max(sub) > _MAX_SUB or bitmap // 4 >= 1 << 31:
-            raise ValueError(f"subdivisions: {s} on shape {shape} gives {sub} sub-cells, over the int32 indices")
+    lo, hi, shape, s, h, sub = porosity_plan(
+        lower, upper, shape, method, subdivisions, midpoint_algorithm, len(r), max_bytes
+    )
     _warn_outside(c, r, lo, hi)
     local = c - lo  # float64, so that a box far from the origin loses nothing
     if method == "midpoint":

@@ -19,7 +19,9 @@ import warp as wp
 from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
 from warp_lamp.kernels.grid import LampGridParams, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
+from warp_lamp.kernels.lamp import walled_owner
 from warp_lamp.kernels.porosity import PI, sphere_box_volume
+from warp_lamp.kernels.walls import LampWalls
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -151,6 +153,47 @@ def dist_scatter(
                     wp.atomic_add(counts, 3 * i + a, wp.int64(1))
                 else:
                     wp.atomic_add(counts, 3 * i + a, wp.int64(-1))
+
+
+@wp.kernel
+def dist_unflip(
+    # outputs
+    keys: wp.array[wp.uint64],
+):
+    """Undo the top-bit flip in place after a reduction as int64, so that the reduced keys read as the lamp's own."""
+    t = wp.tid()
+    keys[t] = keys[t] ^ TOP_BIT
+
+
+@wp.kernel
+def dist_scatter_walls(
+    grid: LampGridParams,
+    keys: wp.array[wp.uint64],
+    gids: wp.array[wp.int32],
+    caller: wp.array[wp.int32],
+    reduced: wp.array[wp.uint64],
+    walls: LampWalls,
+    # outputs
+    counts: wp.array[wp.int64],
+    wall_counts: wp.array[wp.int64],
+):
+    """``lamp_scatter_walls`` on the reduced keys (global ids, not flipped): ``walled_owner`` decides each ray from
+    the reduced key, the same on every rank; a particle's +1 / -1 goes to the rank whose own key is the reduced key
+    (as ``dist_scatter``), a wall's to every rank's wall counts (each rank holds the whole grid's)."""
+    c = wp.tid()
+    a = grid_cell(grid, c)[0]
+    for side in range(2):
+        owner = walled_owner(grid, reduced, walls, c, side)
+        sign = wp.int64(1 - 2 * side)
+        if owner >= 0:
+            mine = keys[2 * c + side]
+            if global_key(mine, gids) == reduced[2 * c + side]:
+                i = key_owner(mine)
+                if caller.shape[0] > 0:
+                    i = caller[i]
+                wp.atomic_add(counts, 3 * i + a, sign)
+        elif owner <= -2:
+            wp.atomic_add(wall_counts, 3 * (-2 - owner) + a, sign)
 
 
 @wp.kernel

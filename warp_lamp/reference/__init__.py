@@ -19,6 +19,7 @@ from warp_lamp.reference.distributed import (
     global_keys_reference,
     merge_lists_reference,
     scatter_reference,
+    scatter_walls_reference,
 )
 from warp_lamp.reference.lamp import EPS32, LampReference, lamp_reference
 from warp_lamp.reference.porosity import (
@@ -47,6 +48,7 @@ __all__ = [
     "octant_volume",
     "porosity_reference",
     "scatter_reference",
+    "scatter_walls_reference",
     "sphere_box_volume",
     "visible_area_reference",
     "visible_disk_areas",

@@ -1,5 +1,6 @@
 """NumPy references of the distributed kernels (``kernels/distributed.py``): keys to global ids, the top-bit flip, the
-merge of D-slot key lists over ranks, the owner test of the scatter, and the fixed-point porosity sums."""
+merge of D-slot key lists over ranks, the owner test of the scatter (with walls too), and the fixed-point porosity
+sums."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ __all__ = [
     "global_keys_reference",
     "merge_lists_reference",
     "scatter_reference",
+    "scatter_walls_reference",
 ]
 
 EMPTY_KEY = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -71,6 +73,34 @@ def scatter_reference(reduced, keys, gids, caller, axis_of_cell, n) -> np.ndarra
         row = int(caller[i]) if len(caller) else i
         counts[row, axis_of_cell[slot // 2]] += 1 if slot % 2 == 0 else -1
     return counts
+
+
+def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled, n_walls) -> tuple:
+    """The counts one rank scatters when walls bound the fluid, given who takes each ray of the reduced keys
+    (``walled``, two per cell: a global id >= 0, wall w as -2 - w, or -1 for nobody): a particle's +1 (low lamp) /
+    -1 (high lamp) goes to the rank's caller row where the reduced key is the rank's own key in global ids; a wall's
+    goes to the wall's counts, on every rank.
+
+    Args:
+        reduced: Reduced keys (global ids), two per cell, shape (2 C,).
+        keys: The rank's keys (local indices in id order), shape (2 C,).
+        gids: Global id of each local index, shape (N,).
+        caller: Caller row of each local index, shape (N,), or empty for the identity.
+        axis_of_cell: Each cell's axis, shape (C,).
+        n: Particles of the rank.
+        walled: Who takes each ray, shape (2 C,).
+        n_walls: Number of walls W.
+
+    Returns:
+        (counts, wall_counts): int64, shapes (N, 3) and (W, 3).
+    """
+    walled = np.asarray(walled)
+    taken = np.where(walled >= 0, np.asarray(reduced), EMPTY_KEY)
+    counts = scatter_reference(taken, keys, gids, caller, axis_of_cell, n)
+    wall_counts = np.zeros((n_walls, 3), dtype=np.int64)
+    for slot in np.flatnonzero(walled <= -2):
+        wall_counts[-2 - int(walled[slot]), axis_of_cell[slot // 2]] += 1 if slot % 2 == 0 else -1
+    return counts, wall_counts
 
 
 def fixed_units_reference(local, radii, h, shape, method: str, bits: int = 40) -> np.ndarray:

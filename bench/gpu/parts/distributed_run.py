@@ -135,7 +135,7 @@ def _timings(coll, scene, grid, rows, repeats, label) -> dict:
         wp.synchronize_event(e1)
         out["replay_mean_s"] = wp.get_event_elapsed_time(e0, e1) / 1e3 / repeats
         steps = {
-            "local_s": lambda: (lamp._launch_seed(), lamp._launch_depth()),
+            "local_s": lambda: (lamp.launch_seed(), lamp.launch_depth()),
             "to_global_s": lamp.launch_to_global,
             "reduce_s": lamp.launch_reduce,
             "scatter_s": lamp.launch_scatter,
