@@ -127,7 +127,7 @@ def test_cpu_and_cuda_bitwise_equal(cuda_device, rng, criterion):
 @pytest.mark.parametrize("criterion", [1, 0])
 def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
     """However the depth pass shares out its work (one thread per sphere, or 1, 3 or 16 per sphere and axis, in the
-    caller's order or sorted by cell, one or two rows per step), it leaves bitwise the same keys, counts and
+    caller's order or sorted by cell), it leaves bitwise the same keys, counts and
     counters, also warm-started elsewhere."""
     centers, radii = polydisperse_scene(rng, n=400, extent=6.0, rmin=0.05, rmax=0.8)
     moved = centers + rng.normal(scale=0.05, size=centers.shape)
@@ -137,9 +137,8 @@ def test_depth_pass_variants_agree_bitwise(device, rng, criterion):
         other, _ = device_arrays(moved - grid.origin, radii, device)
         plain = wl.ShiningLamp(grid, criterion=criterion, split=0, device=device)
         plain.update(pos, rad, in_frame=True)
-        for split, order, paired in ((1, False, 0), (3, True, 0), (16, False, 0), (16, True, 0), (1, 0, 1), (3, 1, 1)):
-            lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, order=bool(order), device=device)
-            lamp.estimator.paired = bool(paired)
+        for split, order in ((1, False), (3, True), (16, False), (16, True)):
+            lamp = wl.ShiningLamp(grid, criterion=criterion, split=split, order=order, device=device)
             lamp.update(other, rad, in_frame=True)
             lamp.update(pos, rad, in_frame=True)
             assert lamp.split == split and (lamp.order.shape[0] == 3 * len(radii)) == order

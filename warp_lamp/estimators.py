@@ -183,9 +183,6 @@ class FirstHit(Estimator):
         self._order_keys = wp.empty(0, dtype=wp.int32, device=d)
         self._order_ids = wp.empty(0, dtype=wp.int32, device=d)
         self._ordered_n = -1
-        #: Two footprint rows per step in the shared depth pass (one key per lamp): the thread waits one L2 round
-        #: trip for two rows. The result never depends on it.
-        self.paired = False
         #: Signed counts per wall and axis (3 per wall), as the particles'.
         self.wall_counts = wp.zeros(3 * frame.n_walls, dtype=wp.int64, device=d)
 
@@ -263,10 +260,8 @@ class FirstHit(Estimator):
             return
         if self.depth_slots > 1:
             kernel = lamp_kernels.lamp_depth_slots
-        elif self.split:
-            kernel = lamp_kernels.lamp_depth_paired if self.paired else lamp_kernels.lamp_depth
         else:
-            kernel = lamp_kernels.lamp_depth_sphere
+            kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
         # An order sorted for another particle count would skip particles: run unordered until the next reorder.
         order = self.order if self._ordered_n == self.n else self._no_order
         wp.launch(

@@ -2,7 +2,7 @@
 script times two versions of the code in one lease (issue 21: "graph replays within 3%, in one run").
 
     PYTHONPATH=<checkout> python bench/experiments/replay.py --label before --json before.json
-    python bench/experiments/replay.py --label after --json after.json --paired   # also the two-row depth pass
+    python bench/experiments/replay.py --label after --json after.json
     python bench/experiments/replay.py --compare before.json after.json
 
 Each row: a scene, a mode and a grid; the update captured once and replayed, CUDA events, median of repeats after
@@ -47,16 +47,13 @@ def _cases(large: bool):
     return out
 
 
-def run(device: str, *, repeats: int, large: bool, paired: bool) -> list[dict]:
+def run(device: str, *, repeats: int, large: bool) -> list[dict]:
     rows = []
     for name, scene, cpd, opts in _cases(large):
         probe = opts.get("probe_radius", 0.0)
         grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=cpd, probe_radius=probe)
-        variants = [False, True] if paired and opts.get("criterion", 1) == 1 and "surfaces" not in opts else [False]
-        for pair in variants:
+        for _ in range(1):
             lamp = wl.ShiningLamp(grid, device=device, **opts)
-            if pair:
-                lamp.estimator.paired = True
             pos = wp.array(grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=device)
             rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
             lamp.update(pos, rad, in_frame=True)
@@ -66,7 +63,7 @@ def run(device: str, *, repeats: int, large: bool, paired: bool) -> list[dict]:
             counts = lamp.counts_numpy()
             rows.append(
                 {
-                    "case": name + (" paired" if pair else ""),
+                    "case": name,
                     "n": int(scene.n),
                     "cells": int(grid.n_cells),
                     "replay_ms": 1e3 * t,
@@ -84,7 +81,7 @@ def compare(a_path: str, b_path: str) -> None:
     print("| case | before ms | after ms | after / before | counts equal |")
     print("| --- | --- | --- | --- | --- |")
     for k, rb in b.items():
-        ra = a.get(k) or a.get(k.replace(" paired", ""))
+        ra = a.get(k)
         if ra is None:
             continue
         same = "yes" if ra["counts_sha"] == rb["counts_sha"] else "NO"
@@ -99,14 +96,13 @@ def main(argv=None) -> int:
     ap.add_argument("--label", default="")
     ap.add_argument("--json")
     ap.add_argument("--no-large", action="store_true")
-    ap.add_argument("--paired", action="store_true", help="also time the two-rows-per-step depth pass")
     ap.add_argument("--compare", nargs=2)
     args = ap.parse_args(argv)
     if args.compare:
         compare(*args.compare)
         return 0
     wp.config.log_level = wp.LOG_WARNING
-    rows = run(args.device, repeats=args.repeats, large=not args.no_large, paired=args.paired)
+    rows = run(args.device, repeats=args.repeats, large=not args.no_large)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump({"label": args.label, "device": wp.get_device(args.device).name, "rows": rows}, f, indent=1)

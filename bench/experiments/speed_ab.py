@@ -71,7 +71,7 @@ def run(device, repeats: int, large: bool) -> list[dict]:
     for name, scene, cpd in scenes:
         rbar = float(scene.radii.mean())
         base = None
-        cases = [("criterion 1", {}, {}), ("criterion 1, two rows per step", {}, {"paired": True})]
+        cases = [("criterion 1", {}, {})]
         if name != "slot d/4":
             for res in ("subpoints", "exact"):
                 for two in (False, True):
@@ -83,8 +83,6 @@ def run(device, repeats: int, large: bool) -> list[dict]:
             probe = opts.get("probe_radius", 0.0)
             grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=cpd, probe_radius=probe)
             lamp = wl.ShiningLamp(grid, device=device, **opts)
-            if variant.get("paired"):
-                lamp.estimator.paired = True
             if variant.get("two_phase"):
                 lamp.estimator.two_phase = True
             if variant.get("block"):

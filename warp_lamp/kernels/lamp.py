@@ -172,124 +172,6 @@ def row_live_slots(
     return live
 
 
-@wp.struct
-class RowSpan:
-    """One footprint row of a sphere on a grid: ``rem`` = r^2 - dv^2, the cells [c0, c1] of its run, and the
-    depth bounds its keys cannot beat (``lo``, ``hi``); ``ok`` false where the sphere misses the row."""
-
-    rem: wp.float32
-    c0: wp.int32
-    c1: wp.int32
-    first: wp.int32
-    lo: wp.uint64
-    hi: wp.uint64
-    ok: wp.bool
-
-
-@wp.func
-def row_span(
-    j: wp.int32,
-    r2: wp.float32,
-    pu: wp.float32,
-    pv: wp.float32,
-    pd: wp.float32,
-    hu: wp.float32,
-    hv: wp.float32,
-    nu: wp.int32,
-    offset: wp.int32,
-    criterion: wp.int32,
-) -> RowSpan:
-    """``lamp_depth``'s per-row set-up, as a function: the same expressions in the same order."""
-    out = RowSpan()
-    out.ok = False
-    dv = cell_offset(j, hv, pv, criterion)
-    rem = r2 - dv * dv
-    if rem < 0.0:
-        return out
-    w = wp.sqrt(rem)
-    cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-    reach = lamp_reach(rem, 0.0, criterion)
-    out.rem = rem
-    out.c0 = cols[0]
-    out.c1 = cols[1]
-    out.first = offset + j * nu
-    out.lo = pack_key(pd - reach, 0)
-    out.hi = pack_key(-(pd + reach), 0)
-    out.ok = True
-    return out
-
-
-@wp.func
-def row_live_pair(keys: wp.array[wp.uint64], a: RowSpan, b: RowSpan) -> wp.vec2i:
-    """``row_live`` of two rows at once: the first four cells of both rows are loaded before any compare, so a
-    thread waits one L2 round trip for two rows (a sphere of a few cells per diameter spans about four rows per
-    axis). Cells past four per row follow in ``row_live``. A row that is not ``ok`` reads row ``a``'s cells and is
-    ignored."""
-    b0 = a.first + a.c0
-    b1 = a.first + a.c1
-    if b.ok:
-        b0 = b.first + b.c0
-        b1 = b.first + b.c1
-    a0 = a.first + a.c0
-    a1 = a.first + a.c1
-    la0 = keys[2 * a0]
-    ha0 = keys[2 * a0 + 1]
-    la1 = keys[2 * wp.min(a0 + 1, a1)]
-    ha1 = keys[2 * wp.min(a0 + 1, a1) + 1]
-    la2 = keys[2 * wp.min(a0 + 2, a1)]
-    ha2 = keys[2 * wp.min(a0 + 2, a1) + 1]
-    la3 = keys[2 * wp.min(a0 + 3, a1)]
-    ha3 = keys[2 * wp.min(a0 + 3, a1) + 1]
-    lb0 = keys[2 * b0]
-    hb0 = keys[2 * b0 + 1]
-    lb1 = keys[2 * wp.min(b0 + 1, b1)]
-    hb1 = keys[2 * wp.min(b0 + 1, b1) + 1]
-    lb2 = keys[2 * wp.min(b0 + 2, b1)]
-    hb2 = keys[2 * wp.min(b0 + 2, b1) + 1]
-    lb3 = keys[2 * wp.min(b0 + 3, b1)]
-    hb3 = keys[2 * wp.min(b0 + 3, b1) + 1]
-    live_a = int(0)
-    live_b = int(0)
-    if wp.max(wp.max(la0, la1), wp.max(la2, la3)) >= a.lo:
-        live_a = live_a | 1
-    if wp.max(wp.max(ha0, ha1), wp.max(ha2, ha3)) >= a.hi:
-        live_a = live_a | 2
-    if wp.max(wp.max(lb0, lb1), wp.max(lb2, lb3)) >= b.lo:
-        live_b = live_b | 1
-    if wp.max(wp.max(hb0, hb1), wp.max(hb2, hb3)) >= b.hi:
-        live_b = live_b | 2
-    if a0 + 4 <= a1:
-        live_a = live_a | row_live(keys, a0 + 4, a1, a.lo, a.hi)
-    if b.ok and b0 + 4 <= b1:
-        live_b = live_b | row_live(keys, b0 + 4, b1, b.lo, b.hi)
-    if not b.ok:
-        live_b = 0
-    return wp.vec2i(live_a, live_b)
-
-
-@wp.func
-def row_offer(
-    keys: wp.array[wp.uint64],
-    row: RowSpan,
-    live: wp.int32,
-    pu: wp.float32,
-    pd: wp.float32,
-    hu: wp.float32,
-    criterion: wp.int32,
-    particle: wp.int32,
-):
-    """``lamp_depth``'s offers along one live row (one key per lamp and cell)."""
-    for i in range(row.c0, row.c1 + 1):
-        du = cell_offset(i, hu, pu, criterion)
-        if du * du <= row.rem:
-            depth = lamp_reach(row.rem, du, criterion)
-            c = row.first + i
-            if (live & 1) != 0:
-                offer(keys, 2 * c, pack_key(pd - depth, particle))
-            if (live & 2) != 0:
-                offer(keys, 2 * c + 1, pack_key(-(pd + depth), particle))
-
-
 @wp.func
 def owner_key(
     a: wp.int32,
@@ -476,12 +358,11 @@ def lamp_order_keys(
         cell_keys[p] = grid.offset[a] + j * grid.n_u[a] + i
 
 
-def _depth_kernel(slots: int, shared: bool, paired: bool = False):
+def _depth_kernel(slots: int, shared: bool):
     """The depth pass, compiled for one key per lamp and cell (``slots`` 1: the criteria's lamps) or generic in
     ``depth_slots`` (``slots`` 0: the samples of the area estimator), and for one thread per sphere (``shared``
-    False) or ``split`` threads per (sphere, axis), and (``paired``, one key per lamp, shared work) for two rows per
-    step (``row_live_pair``). Each specialisation drops code that the others need: the GPU measured every unused
-    branch in registers (bench/NOTES.md v5)."""
+    False) or ``split`` threads per (sphere, axis). Each specialisation drops code that the others need: the GPU
+    measured every unused branch in registers (bench/NOTES.md v5)."""
 
     @wp.kernel
     def lamp_depth(
@@ -541,71 +422,49 @@ def _depth_kernel(slots: int, shared: bool, paired: bool = False):
                 hv = grid.h_v[a]
                 nu = grid.n_u[a]
                 rows = cell_span(pv - r, pv + r, hv, grid.n_v[a], criterion)
-                if wp.static(paired):
-                    j = rows[0] + first_row
-                    while j <= rows[1]:
-                        row_a = row_span(j, r2, pu, pv, pd, hu, hv, nu, grid.offset[a], criterion)
-                        row_b = RowSpan()
-                        row_b.ok = False
-                        if j + row_step <= rows[1]:
-                            row_b = row_span(j + row_step, r2, pu, pv, pd, hu, hv, nu, grid.offset[a], criterion)
-                        if not row_a.ok:
-                            # The pair's loads need a valid row first; rows miss only at a footprint's edge.
-                            row_a = row_b
-                            row_b = RowSpan()
-                            row_b.ok = False
-                        if row_a.ok:
-                            live = row_live_pair(keys, row_a, row_b) & wp.vec2i(lamp_bits, lamp_bits)
-                            if live[0] != 0:
-                                row_offer(keys, row_a, live[0], pu, pd, hu, criterion, particle)
-                            if live[1] != 0:
-                                row_offer(keys, row_b, live[1], pu, pd, hu, criterion, particle)
-                        j += 2 * row_step
-                else:
-                    for j in range(rows[0] + first_row, rows[1] + 1, row_step):
-                        # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
-                        # run of cells and the span from w = sqrt(rem) brackets it.
-                        dv = cell_offset(j, hv, pv, criterion)
-                        rem = r2 - dv * dv
-                        if rem < 0.0:
-                            continue
-                        w = wp.sqrt(rem)
-                        cols = cell_span(pu - w, pu + w, hu, nu, criterion)
-                        first = grid.offset[a] + j * nu
-                        # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w
-                        # (high), exactly in float32 (sqrt and subtraction are monotone). Where every kept key
-                        # already beats that bound, the row is done with loads alone, no sqrt or key packing; ties
-                        # keep the row alive.
-                        reach = lamp_reach(rem, 0.0, criterion)
-                        low_bound = pack_key(pd - reach, 0)
-                        high_bound = pack_key(-(pd + reach), 0)
-                        live = int(0)
-                        if wp.static(slots == 1):
-                            live = row_live(keys, first + cols[0], first + cols[1], low_bound, high_bound)
-                        else:
-                            live = row_live_slots(
-                                keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound
-                            )
-                        live = live & lamp_bits
-                        if live == 0:
-                            continue
-                        for i in range(cols[0], cols[1] + 1):
-                            du = cell_offset(i, hu, pu, criterion)
-                            if du * du <= rem:
-                                depth = lamp_reach(rem, du, criterion)
-                                c = first + i
-                                low = pack_key(pd - depth, particle)
-                                high = pack_key(-(pd + depth), particle)
-                                if wp.static(slots == 1):
-                                    if (live & 1) != 0:
-                                        offer(keys, 2 * c, low)
-                                    if (live & 2) != 0:
-                                        offer(keys, 2 * c + 1, high)
-                                else:
-                                    if (live & 1) != 0:
-                                        offer_slots(keys, key_slot(c, 0, depth_slots), depth_slots, low)
-                                    if (live & 2) != 0:
-                                        offer_slots(keys, key_slot(c, 1, depth_slots), depth_slots, high)
+                for j in range(rows[0] + first_row, rows[1] + 1, row_step):
+                    # The hit test du^2 <= r^2 - dv^2 is monotone in |du| along the row, so the row's hits are one
+                    # run of cells and the span from w = sqrt(rem) brackets it.
+                    dv = cell_offset(j, hv, pv, criterion)
+                    rem = r2 - dv * dv
+                    if rem < 0.0:
+                        continue
+                    w = wp.sqrt(rem)
+                    cols = cell_span(pu - w, pu + w, hu, nu, criterion)
+                    first = grid.offset[a] + j * nu
+                    # Row filter: no depth this sphere offers in the row can beat pd - w (low) or pd + w (high),
+                    # exactly in float32 (sqrt and subtraction are monotone). Where every kept key already beats that
+                    # bound, the row is done with loads alone, no sqrt or key packing; ties keep the row alive.
+                    reach = lamp_reach(rem, 0.0, criterion)
+                    low_bound = pack_key(pd - reach, 0)
+                    high_bound = pack_key(-(pd + reach), 0)
+                    live = int(0)
+                    if wp.static(slots == 1):
+                        live = row_live(keys, first + cols[0], first + cols[1], low_bound, high_bound)
+                    else:
+                        live = row_live_slots(
+                            keys, first + cols[0], first + cols[1], depth_slots, low_bound, high_bound
+                        )
+                    live = live & lamp_bits
+                    if live == 0:
+                        continue
+                    for i in range(cols[0], cols[1] + 1):
+                        du = cell_offset(i, hu, pu, criterion)
+                        if du * du <= rem:
+                            depth = lamp_reach(rem, du, criterion)
+                            c = first + i
+                            low = pack_key(pd - depth, particle)
+                            high = pack_key(-(pd + depth), particle)
+                            if wp.static(slots == 1):
+                                if (live & 1) != 0:
+                                    offer(keys, 2 * c, low)
+                                if (live & 2) != 0:
+                                    offer(keys, 2 * c + 1, high)
+                            else:
+                                if (live & 1) != 0:
+                                    offer_slots(keys, key_slot(c, 0, depth_slots), depth_slots, low)
+                                if (live & 2) != 0:
+                                    offer_slots(keys, key_slot(c, 1, depth_slots), depth_slots, high)
 
     return lamp_depth
 
@@ -613,7 +472,6 @@ def _depth_kernel(slots: int, shared: bool, paired: bool = False):
 lamp_depth_sphere = _depth_kernel(1, False)
 lamp_depth = _depth_kernel(1, True)
 lamp_depth_slots = _depth_kernel(0, True)
-lamp_depth_paired = _depth_kernel(1, True, paired=True)
 
 
 @wp.kernel

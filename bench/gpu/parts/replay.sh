@@ -4,5 +4,5 @@
 if [ -d .before/warp_lamp ]; then
   PYTHONPATH="/root/site:$PWD/.before" python3 bench/experiments/replay.py --label before --json "$OUT/replay_before.json" | tail -12
 fi
-python3 bench/experiments/replay.py --label after --paired --json "$OUT/replay_after.json" | tail -14
+python3 bench/experiments/replay.py --label after --json "$OUT/replay_after.json" | tail -14
 [ -f "$OUT/replay_before.json" ] && python3 bench/experiments/replay.py --compare "$OUT/replay_before.json" "$OUT/replay_after.json"
