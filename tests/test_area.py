@@ -187,20 +187,23 @@ def test_overlapping_packing_meets_the_targets(device):
 
 
 @pytest.mark.parametrize("resolver", ["subpoints", "exact"])
-def test_two_phase_cell_pass_equals_the_one_phase_pass(device, resolver):
-    """The cell pass split into (cell, lamp) threads and a per-cell payout gives bitwise the same counts and
-    counters as one thread per cell, on a packing of overlapping spheres."""
-
+def test_deferred_undecided_cells_equal_the_one_thread_pass(device, resolver):
+    """Undecided cells resolved by a thread per row of points (the GPU's default) give bitwise the counts and
+    counters of one thread per cell, on a packing of overlapping spheres (many undecided cells, some past the
+    work list's room, which the cell pass then resolves itself)."""
     scene = scene_overlapping_polydisperse(n=300)
     grid = wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=3)
     pos = wp.array(grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
     out = []
-    for two_phase in (False, True):
+    for defer in (False, True):
         lamp = wl.ShiningLamp(grid, criterion="area", resolver=resolver, device=device)
-        lamp.estimator.two_phase = two_phase
+        lamp.estimator.defer = defer
         lamp.update(pos, rad, in_frame=True)
         d = lamp.diagnostics()
         out.append((lamp.counts_numpy(), d.area_overflow, d.area_one_sided))
+        if defer:
+            asked = int(lamp.estimator._work["count"].numpy()[0])
+            assert asked > lamp.estimator._work["cells"].shape[0]  # the list overflowed: both paths ran
     np.testing.assert_array_equal(out[0][0], out[1][0])
     assert out[0][1:] == out[1][1:]

@@ -384,26 +384,43 @@ class AreaSplit(FirstHit):
         self.resolver = resolver
         self.subpoints = subpoints
         self.unit = AREA_EXACT_UNIT if resolver == "exact" else subpoints**2
-        self._sides = None
         #: Threads per block of the cell pass: a latency-bound pass of few cells spreads over more SMs in
         #: smaller blocks.
         self.block_dim = 256
+        self._work = None
+        if self.device.is_cuda:
+            # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
+            self.block_dim = 64
+            self.defer = True
+
+    #: Deferred cells per cell of the grid: a cell whose order is undecided somewhere (1.4% of the SphereTest
+    #: specimen's cell-lamps at 4 cells per diameter, a quarter of a strongly overlapping packing's) waits in a work
+    #: list of n_cells / 16 entries; past that, the cell pass resolves it itself (slower, the same result).
+    WORK_FRACTION = 16
 
     @property
-    def two_phase(self) -> bool:
-        """The cell pass in two phases: one thread per (cell, lamp) resolves its shares into a scratch array
-        (``area_sides``; 68 bytes per cell and lamp), then one thread per cell balances and scatters
-        (``area_payout``). Twice the threads and half the chain per thread of the one-phase pass; the result is
-        bitwise the same."""
-        return self._sides is not None
+    def defer(self) -> bool:
+        """Undecided cells resolved by a thread per row of their points instead of one thread (``kernels/area.py``
+        ``_area_kernels``): the cell pass's stragglers spread out. Bitwise the same result."""
+        return self._work is not None
 
-    @two_phase.setter
-    def two_phase(self, on: bool) -> None:
-        if bool(on) == self.two_phase:
+    @defer.setter
+    def defer(self, on: bool) -> None:
+        if bool(on) == self.defer:
             return
-        self._sides = None
+        self._work = None
         if on:
-            self._sides = wp.zeros(2 * self.grid.n_cells, dtype=area_kernels.SideShares, device=self.device)
+            from warp_lamp.kernels.area import SeedList, SideShares
+
+            w = max(64, self.grid.n_cells // self.WORK_FRACTION)
+            d = self.device
+            self._work = {
+                "seeds": wp.zeros(2 * w, dtype=SeedList, device=d),
+                "shares": wp.zeros(2 * w, dtype=SideShares, device=d),
+                "cells": wp.zeros(w, dtype=wp.int32, device=d),
+                "count": wp.zeros(1, dtype=wp.int32, device=d),
+                "units": wp.zeros(2 * w * 16, dtype=wp.int32, device=d),
+            }
 
     def launch_scatter(self) -> None:
         """Step 3: each cell shares its units among the spheres visible in it."""
@@ -425,23 +442,8 @@ class AreaSplit(FirstHit):
             self.subpoints,
             self.unit,
         ]
-        if self._sides is not None:
-            wp.launch(
-                area_kernels.area_sides,
-                dim=2 * self.grid.n_cells,
-                inputs=shared,
-                outputs=[self._sides],
-                device=self.device,
-                block_dim=self.block_dim,
-            )
-            wp.launch(
-                area_kernels.area_payout,
-                dim=self.grid.n_cells,
-                inputs=[self._cells(), self._sides, self.lamp_mask, shared[6]],
-                outputs=[counts, self.diag[2:]],
-                device=self.device,
-                block_dim=self.block_dim,
-            )
+        if self._work is not None:
+            self._launch_deferred(shared, counts)
             return
         wp.launch(
             area_kernels.area_cells,
@@ -450,6 +452,32 @@ class AreaSplit(FirstHit):
             outputs=[counts, self.diag[2:]],
             device=self.device,
             block_dim=self.block_dim,
+        )
+
+    def _launch_deferred(self, shared: list, counts: wp.array) -> None:
+        # The cell pass for decided cells, its undecided cells' rows of points, their payout (``defer``).
+        w = self._work
+        cells_k, rows_k, payout_k = area_kernels.AREA_DEFERRED[shared[6]]
+        w["count"].zero_()
+        w["units"].zero_()
+        inputs = [*shared[:6], self.subpoints, self.unit]
+        outputs = [counts, self.diag[2:], w["seeds"], w["shares"], w["cells"], w["count"]]
+        d = self.device
+        wp.launch(cells_k, dim=self.grid.n_cells, inputs=inputs, outputs=outputs, device=d, block_dim=self.block_dim)
+        rows = self.subpoints if self.resolver == "subpoints" else int(area_kernels.RASTER)
+        wp.launch(
+            rows_k,
+            dim=w["seeds"].shape[0] * rows,
+            inputs=[shared[0], w["seeds"], w["shares"], w["cells"], w["count"], self.subpoints],
+            outputs=[w["units"]],
+            device=d,
+        )
+        wp.launch(
+            payout_k,
+            dim=w["cells"].shape[0],
+            inputs=[shared[0], w["shares"], w["cells"], w["count"], w["units"], self.lamp_mask, self.unit],
+            outputs=[counts, self.diag[2:]],
+            device=d,
         )
 
 

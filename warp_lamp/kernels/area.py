@@ -528,19 +528,39 @@ def raster_correction(
 
 
 @wp.struct
+class SeedList:
+    """One lamp's seeds for one cell after steps 1-2: particle ids and their disks in the cell's coordinates
+    (centre ``ox``, ``oy``, depth ``oz`` along the lamp, radius ``rr``) in clip order, how many, the first that holds
+    the whole cell (-1: none), whether the order is ``undecided`` somewhere in the cell, and the gather's
+    ``overflow``."""
+
+    ids: vec_seed_i
+    ox: vec_seed_f
+    oy: vec_seed_f
+    oz: vec_seed_f
+    rr: vec_seed_f
+    count: wp.int32
+    full: wp.int32
+    undecided: wp.int32
+    overflow: wp.int32
+
+
+@wp.struct
 class SideShares:
     """One lamp's shares of one cell: its seeds' particle ids and shares (units of ``unit`` per cell), how many,
-    their float sum in seed order, and whether the gather overflowed."""
+    their float sum in seed order, whether the gather overflowed, and the deferred-work item that still owes points
+    (-1: none; the exact resolver's clip is in ``shares`` already)."""
 
     ids: vec_seed_i
     shares: vec_seed_f
     count: wp.int32
     total: wp.float32
     overflow: wp.int32
+    work: wp.int32
 
 
 @wp.func
-def side_shares(
+def side_seeds(
     grid: LampGridParams,
     particles: LampParticles,
     keys: wp.array[wp.uint64],
@@ -550,11 +570,8 @@ def side_shares(
     i: wp.int32,
     j: wp.int32,
     side: wp.int32,
-    resolver: wp.int32,
-    subpoints: wp.int32,
-    unit: wp.int32,
-) -> SideShares:
-    """Steps 1-3 of the module docstring for lamp ``side`` of cell (i, j) of grid a: gather, order, resolve."""
+) -> SeedList:
+    """Steps 1-2 of the module docstring for lamp ``side`` of cell (i, j) of grid a: gather, cull, order."""
     nu = grid.n_u[a]
     nv = grid.n_v[a]
     hu = grid.h_u[a]
@@ -662,7 +679,6 @@ def side_shares(
                 full = kept
             kept += 1
     count = kept
-    shares = vec_seed_f()
     # The seeds' order: the surface order wherever it holds on the whole cell; else each point's surface
     # depths decide (sub-points), or the raster corrects the clip (exact).
     undecided = int(0)
@@ -696,30 +712,99 @@ def side_shares(
                 rr[k] = rr_c[o]
                 if o == full_c:
                     full = k
-    if count > 0:
-        if resolver == RESOLVER_SUBPOINTS:
-            shares = subpoint_shares(ox, oy, oz, rr, full, count, hu, hv, subpoints, undecided)
-        else:
-            areas = exact_areas(ox, oy, rr, count, hu, hv)
-            for k in range(count):
-                shares[k] = areas[k] / (hu * hv) * float(unit)
-            if undecided != 0:
-                corr = raster_correction(ox, oy, oz, rr, full, count, hu, hv, float(unit) / float(RASTER * RASTER))
-                for k in range(count):
-                    shares[k] = wp.max(shares[k] + corr[k], 0.0)
-    total = float(0.0)
-    for k in range(count):
-        total += shares[k]
-    total = float(0.0)
-    for k in range(count):
-        total += shares[k]
-    out = SideShares()
+    out = SeedList()
     out.ids = ids
-    out.shares = shares
+    out.ox = ox
+    out.oy = oy
+    out.oz = oz
+    out.rr = rr
     out.count = count
-    out.total = total
+    out.full = full
+    out.undecided = undecided
     out.overflow = overflow
     return out
+
+
+@wp.func
+def clip_shares(seeds: SeedList, hu: wp.float32, hv: wp.float32, unit: wp.int32) -> vec_seed_f:
+    """The exact resolver's clip, in units: circle arcs clipped front to back in the seeds' order."""
+    shares = vec_seed_f()
+    areas = exact_areas(seeds.ox, seeds.oy, seeds.rr, seeds.count, hu, hv)
+    for k in range(seeds.count):
+        shares[k] = areas[k] / (hu * hv) * float(unit)
+    return shares
+
+
+@wp.func
+def finish_shares(seeds: SeedList, shares: vec_seed_f) -> SideShares:
+    """Step 3's result as the payout reads it: the shares and their float sum in seed order."""
+    total = float(0.0)
+    for k in range(seeds.count):
+        total += shares[k]
+    out = SideShares()
+    out.ids = seeds.ids
+    out.shares = shares
+    out.count = seeds.count
+    out.total = total
+    out.overflow = seeds.overflow
+    out.work = -1
+    return out
+
+
+@wp.func
+def resolve_subpoints(seeds: SeedList, hu: wp.float32, hv: wp.float32, subpoints: wp.int32) -> vec_seed_f:
+    """Step 3 on sub-points, in one thread: each point to the first seed whose disk holds it (the surface order
+    holds on the whole cell), or by its surface depths (``undecided``)."""
+    shares = vec_seed_f()
+    if seeds.count > 0:
+        shares = subpoint_shares(
+            seeds.ox, seeds.oy, seeds.oz, seeds.rr, seeds.full, seeds.count, hu, hv, subpoints, seeds.undecided
+        )
+    return shares
+
+
+@wp.func
+def resolve_exact(seeds: SeedList, hu: wp.float32, hv: wp.float32, unit: wp.int32) -> vec_seed_f:
+    """Step 3 exactly, in one thread: the clip, and in an undecided cell the raster's correction."""
+    shares = vec_seed_f()
+    if seeds.count > 0:
+        shares = clip_shares(seeds, hu, hv, unit)
+        if seeds.undecided != 0:
+            weight = float(unit) / float(RASTER * RASTER)
+            corr = raster_correction(seeds.ox, seeds.oy, seeds.oz, seeds.rr, seeds.full, seeds.count, hu, hv, weight)
+            for k in range(seeds.count):
+                shares[k] = wp.max(shares[k] + corr[k], 0.0)
+    return shares
+
+
+@wp.func
+def resolve(
+    seeds: SeedList, hu: wp.float32, hv: wp.float32, resolver: wp.int32, subpoints: wp.int32, unit: wp.int32
+) -> SideShares:
+    """Step 3 in one thread, the resolver chosen at run time."""
+    if resolver == RESOLVER_SUBPOINTS:
+        return finish_shares(seeds, resolve_subpoints(seeds, hu, hv, subpoints))
+    return finish_shares(seeds, resolve_exact(seeds, hu, hv, unit))
+
+
+@wp.func
+def side_shares(
+    grid: LampGridParams,
+    particles: LampParticles,
+    keys: wp.array[wp.uint64],
+    d: wp.int32,
+    sample_offset: wp.vec3i,
+    a: wp.int32,
+    i: wp.int32,
+    j: wp.int32,
+    side: wp.int32,
+    resolver: wp.int32,
+    subpoints: wp.int32,
+    unit: wp.int32,
+) -> SideShares:
+    """Steps 1-3 for lamp ``side`` of cell (i, j) of grid a, in one thread."""
+    seeds = side_seeds(grid, particles, keys, d, sample_offset, a, i, j, side)
+    return resolve(seeds, grid.h_u[a], grid.h_v[a], resolver, subpoints, unit)
 
 
 @wp.func
@@ -828,49 +913,182 @@ def area_cells(
     pay_out(a, bits, s0, s1, resolver, counts, diag)
 
 
-@wp.kernel
-def area_sides(
-    grid: LampGridParams,
-    particles: LampParticles,
-    keys: wp.array[wp.uint64],
-    depth_slots: wp.int32,
-    sample_offset: wp.vec3i,
-    lamp_mask: wp.int32,
-    resolver: wp.int32,
-    subpoints: wp.int32,
-    unit: wp.int32,
-    # outputs
-    sides: wp.array[SideShares],
-):
-    """The two-phase pass, phase 1: one thread per (cell, lamp) gathers, orders and resolves that lamp's shares
-    (``side_shares``), twice the threads of ``area_cells`` and half its chain per thread."""
-    t = wp.tid()
-    c = t / 2
-    side = t - 2 * c
-    cell = grid_cell(grid, c)
-    a = cell[0]
-    out = SideShares()
-    if ((lamp_mask >> (2 * a + side)) & 1) != 0:
-        out = side_shares(
-            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], side, resolver, subpoints, unit
-        )
-    sides[t] = out
+@wp.func
+def row_points(
+    seeds: SeedList, hu: wp.float32, hv: wp.float32, n: wp.int32, row: wp.int32, exact: wp.bool
+) -> vec_seed_i:
+    """One row (k = ``row``) of an undecided cell's n x n points, by surface depth: the points each seed wins
+    (sub-points), or the raster correction's units per seed (exact: +1 to the surface's seed, -1 to the clip's where
+    they differ), exactly what ``subpoint_shares`` and ``raster_correction`` add in that row."""
+    out = vec_seed_i()
+    su = hu / float(n)
+    sv = hv / float(n)
+    tx = (float(row) + 0.5) * su
+    for kv in range(n):
+        ty = (float(kv) + 0.5) * sv
+        won, holder = first_surface(seeds.ox, seeds.oy, seeds.oz, seeds.rr, seeds.full, seeds.count, tx, ty)
+        if exact:
+            if won != holder:
+                out[won] = out[won] + 1
+                out[holder] = out[holder] - 1
+        elif won < seeds.count:
+            out[won] = out[won] + 1
+    return out
 
 
-@wp.kernel
-def area_payout(
-    grid: LampGridParams,
-    sides: wp.array[SideShares],
-    lamp_mask: wp.int32,
-    resolver: wp.int32,
-    # outputs
-    counts: wp.array[wp.int64],
-    diag: wp.array[wp.int32],
-):
-    """The two-phase pass, phase 2: one thread per cell balances its two lamps' shares and scatters them."""
-    c = wp.tid()
-    a = grid_cell(grid, c)[0]
-    bits = (lamp_mask >> (2 * a)) & 3
-    if bits == 0:
-        return
-    pay_out(a, bits, sides[2 * c], sides[2 * c + 1], resolver, counts, diag)
+def _area_kernels(exact: bool):
+    """The cell pass specialised for one resolver (a kernel that never runs the other's code keeps fewer registers),
+    with its undecided cells deferred: the cells whose order the pair relations cannot settle for the whole cell
+    are the pass's stragglers (one thread would run S x S or 64 x 64 surface depths alone), so the cell pass leaves
+    them in a work list and a second kernel spreads their points over a thread per row; a third pays them out.
+    Bitwise the same as ``area_cells``: the rows add the same integers the one thread adds."""
+    rows_per_cell = RASTER
+
+    @wp.kernel
+    def area_cells_deferred(
+        grid: LampGridParams,
+        particles: LampParticles,
+        keys: wp.array[wp.uint64],
+        depth_slots: wp.int32,
+        sample_offset: wp.vec3i,
+        lamp_mask: wp.int32,
+        subpoints: wp.int32,
+        unit: wp.int32,
+        # outputs
+        counts: wp.array[wp.int64],
+        diag: wp.array[wp.int32],
+        work: wp.array[SeedList],
+        work_shares: wp.array[SideShares],
+        work_cells: wp.array[wp.int32],
+        work_count: wp.array[wp.int32],
+    ):
+        """One thread per cell: decided cells as ``area_cells``; a cell with an undecided lamp goes to the work
+        list (both lamps' seeds, the clip's shares for the exact resolver) while there is room."""
+        c = wp.tid()
+        cell = grid_cell(grid, c)
+        a = cell[0]
+        bits = (lamp_mask >> (2 * a)) & 3
+        if bits == 0:
+            return
+        hu = grid.h_u[a]
+        hv = grid.h_v[a]
+        q0 = SeedList()
+        q1 = SeedList()
+        if (bits & 1) != 0:
+            q0 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0)
+        if (bits & 2) != 0:
+            q1 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1)
+        slot = int(-1)
+        if q0.undecided != 0 or q1.undecided != 0:
+            slot = wp.atomic_add(work_count, 0, 1)
+            if slot >= work_cells.shape[0]:
+                slot = -1
+        s0 = SideShares()
+        s1 = SideShares()
+        for side in range(2):
+            q = q0
+            if side == 1:
+                q = q1
+            sh = vec_seed_f()
+            if wp.static(exact):
+                if slot >= 0 and q.count > 0:
+                    sh = clip_shares(q, hu, hv, unit)
+                else:
+                    sh = resolve_exact(q, hu, hv, unit)
+            else:
+                if slot < 0 or q.undecided == 0:
+                    sh = resolve_subpoints(q, hu, hv, subpoints)
+            out = finish_shares(q, sh)
+            if slot >= 0 and q.undecided != 0:
+                out.work = 2 * slot + side
+            if side == 0:
+                s0 = out
+            else:
+                s1 = out
+        if slot < 0:
+            pay_out(a, bits, s0, s1, RESOLVER_EXACT if wp.static(exact) else RESOLVER_SUBPOINTS, counts, diag)
+            return
+        work[2 * slot] = q0
+        work[2 * slot + 1] = q1
+        work_shares[2 * slot] = s0
+        work_shares[2 * slot + 1] = s1
+        work_cells[slot] = c
+
+    @wp.kernel
+    def area_rows(
+        grid: LampGridParams,
+        work: wp.array[SeedList],
+        work_shares: wp.array[SideShares],
+        work_cells: wp.array[wp.int32],
+        work_count: wp.array[wp.int32],
+        subpoints: wp.int32,
+        # outputs
+        work_units: wp.array[wp.int32],
+    ):
+        """One thread per (deferred cell, lamp, row of points): that row's units per seed, added atomically."""
+        t = wp.tid()
+        n = subpoints
+        if wp.static(exact):
+            n = rows_per_cell
+        item = t / n
+        row = t - item * n
+        slot = item / 2
+        if slot >= wp.min(work_count[0], work_cells.shape[0]):
+            return
+        if work_shares[item].work < 0 or row >= n:
+            return
+        a = grid_cell(grid, work_cells[slot])[0]
+        seeds = work[item]
+        units = row_points(seeds, grid.h_u[a], grid.h_v[a], n, row, wp.static(exact))
+        for k in range(seeds.count):
+            if units[k] != 0:
+                wp.atomic_add(work_units, 16 * item + k, units[k])
+
+    @wp.kernel
+    def area_payout_deferred(
+        grid: LampGridParams,
+        work_shares: wp.array[SideShares],
+        work_cells: wp.array[wp.int32],
+        work_count: wp.array[wp.int32],
+        work_units: wp.array[wp.int32],
+        lamp_mask: wp.int32,
+        unit: wp.int32,
+        # outputs
+        counts: wp.array[wp.int64],
+        diag: wp.array[wp.int32],
+    ):
+        """One thread per deferred cell: the rows' units into the shares, then the payout."""
+        slot = wp.tid()
+        if slot >= wp.min(work_count[0], work_cells.shape[0]):
+            return
+        a = grid_cell(grid, work_cells[slot])[0]
+        bits = (lamp_mask >> (2 * a)) & 3
+        s0 = work_shares[2 * slot]
+        s1 = work_shares[2 * slot + 1]
+        for side in range(2):
+            s = s0
+            if side == 1:
+                s = s1
+            if s.work >= 0:
+                sh = s.shares
+                for k in range(s.count):
+                    u = float(work_units[16 * s.work + k])
+                    if wp.static(exact):
+                        sh[k] = wp.max(sh[k] + u * (float(unit) / float(RASTER * RASTER)), 0.0)
+                    else:
+                        sh[k] = u
+                total = float(0.0)
+                for k in range(s.count):
+                    total += sh[k]
+                s.shares = sh
+                s.total = total
+                if side == 0:
+                    s0 = s
+                else:
+                    s1 = s
+        pay_out(a, bits, s0, s1, RESOLVER_EXACT if wp.static(exact) else RESOLVER_SUBPOINTS, counts, diag)
+
+    return area_cells_deferred, area_rows, area_payout_deferred
+
+
+AREA_DEFERRED = {RESOLVER_SUBPOINTS: _area_kernels(False), RESOLVER_EXACT: _area_kernels(True)}
