@@ -151,7 +151,7 @@ def walls_supported() -> bool:
 
 
 def resolve_base(base: str, surfaces: str) -> str:
-    """The base treatment to use: "auto" is "lamp-off" in the memo's mode and "clamped" in the wetted mode."""
+    """The base treatment to use ("auto" is "clamped" in both modes), or ValueError naming ``base``."""
     if base not in BASES:
         raise ValueError(f"base: expected one of {BASES}, got {base!r}")
     if base == "auto":
@@ -260,7 +260,6 @@ class RockCutting:
         self._graph = None
         self._loaded = False
         self.samples = []
-        self.fragment_samples = []
         self.phase_cycles = {}
         self.main_label = None
 
@@ -350,14 +349,17 @@ class RockCutting:
     # --- the procedure ------------------------------------------------------------------------------------------
 
     def settle(self, *, verbose: bool = False) -> None:
-        """The pressure ramps linearly to P over ``ramp_cycles`` (set between blocks), then holds for
-        ``settle_cycles``; the cutter waits behind the slab."""
+        """The pressure ramps linearly to P over ``ramp_cycles`` (set before each block: the lamp's forces change
+        in steps of a block's share), then holds for ``settle_cycles``; the cutter waits behind the slab."""
         c = self.config
         start = self.cycle
         ramp = max(c.ramp_cycles, 1)
-        while self.cycle - start < c.ramp_cycles + c.settle_cycles:
+        while self.cycle - start < c.ramp_cycles:
             frac = min(1.0, (self.cycle - start + self.block) / ramp)
             self.pressure.assign(np.array([self.pressure_value * frac], dtype=np.float32))
+            self.advance(self.block)
+        self.pressure.assign(np.array([self.pressure_value], dtype=np.float32))
+        while self.cycle - start < c.ramp_cycles + c.settle_cycles:
             self.advance(min(self.check_every, c.ramp_cycles + c.settle_cycles - (self.cycle - start)))
         t, s = self.rock.bonds.broken_counts()
         self.settle_broken = (t, s)
@@ -538,7 +540,7 @@ class RockCutting:
                 opts.update(surfaces="all", probe_radius=self.config.probe_radius * 0.5 * self.d_mean)
             if base == "wall":
                 opts["walls"] = [((0.0, 0.0, self.z_base - self.frame_center[2]), (0.0, 0.0, 1.0))]
-            f = wl.lamp_forces(local, r, p, grid=grid, device="cpu", **opts)
+            f = wl.lamp_forces(local, r, p, grid=grid, device=self.device, **opts)
             walls = (-f[near, 1].sum() + f[far, 1].sum()) / (p * 2.0 * length * self.depth) if length > 0 else None
             flo = -f[floor, 2].sum() / (p * length * (self.cutter_width - dd)) if length > 0 else None
             out[mode] = {
