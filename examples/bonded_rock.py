@@ -81,8 +81,8 @@ MIN_BONDS = 3
 DT_FACTOR = 0.25
 #: Loading angle of the Brazilian disk's flats [degrees]: flat platens on a round disk of 14 particles across crush
 #: the one or two particles they first touch and give a peak that varies twofold from specimen to specimen; flats
-#: spread the load (Wang et al. 2004's flattened disk; at 20 degrees the plain formula 2F / (pi D t) is about 4%
-#: above the tensile strength it infers).
+#: spread the load (Wang et al. 2004's flattened disk, whose correction to the plain formula 2F / (pi D t) is a few
+#: percent at 20 degrees; the plain formula is used).
 FLAT_DEG = 20.0
 #: Mean particle diameter of the study [m] (the CPU test uses the same).
 PARTICLE_DIAMETER = 0.5e-3
