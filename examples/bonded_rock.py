@@ -1,30 +1,36 @@
-"""A bonded-particle rock in the examples' Warp DEM, and its calibration: unconfined compression and Brazilian tests.
+"""A bonded-particle rock in the examples' Warp DEM, and its calibration: unconfined compression, Brazilian and
+direct tension tests.
 
-    python examples/bonded_rock.py                       # both tests at the study's particle size, default device
-    python examples/bonded_rock.py --tiny --device cpu   # the CPU test's small specimens (seconds)
+    python examples/bonded_rock.py --device cpu --json calibration.json   # the study's specimens, three seeds
+    python examples/bonded_rock.py --tiny --device cpu                    # the CPU test's small specimens
 
 The rock is the memo's Table 1 (PFC3D microproperties of Carthage limestone), in the spirit of PFC's parallel-bond
 model (Potyondy and Cundall 2004): polydisperse balls (Rmax/Rmin = 1.66, 2620 kg/m^3) with linear contacts
 (E_c = 100 GPa, kn/ks = 3.7, mu = 0.5) and, in parallel, bonds (lambda = 1, E_b = 100 GPa, kn/ks = 3.7) whose
 tensile and shear strengths are drawn per bond from a normal distribution of mean 107 MPa and standard deviation
 20 MPa (truncated at 10% of the mean). ``examples/dem.py`` holds the bond law (:func:`dem.dem_bonds`): normal and
-shear stiffness per area, bending and twisting, broken for good in tension or in shear.
+shear stiffness per area, bending and twisting, broken for good in tension or in shear; BOND_FRICTION_DEG > 0
+makes the shear strength rise with the bond's compression (PFC5's linear parallel bond; the memo's has none).
 
 Specimens come from :func:`warp_lamp.scenes.scene_box_specimen` (or the cylinder specimen for the Brazilian disk):
 a random packing relaxed to 1% overlap; every radius is then shrunk by SHRINK (0.5%), which leaves no pair
 overlapping, so the bonds are installed at zero force with no locked-in contact force (an overlap of 1% of a
 radius is a contact stress of a few hundred MPa at E_c = 100 GPa, more than a bond holds). Bonds join every pair
-whose surfaces are closer than BOND_GAP of the smaller radius: a bond coordination number of about 5.5.
+whose surfaces are closer than BOND_GAP of the smaller radius, and every particle gets at least MIN_BONDS (to its
+nearest neighbours): a bond coordination number of about 6.3.
 
 Time step: DT_FACTOR sqrt(m / k) of the smallest ball, k its contact (2 E_c R) and bond (E_b pi R / 2) stiffness
 against an equal ball; real density, PFC local damping 0.7.
 
-Calibration (both platens frictionless, rigid, moving toward each other at a constant speed):
+Calibration (platens frictionless and rigid, moving toward each other at a constant speed; grips held):
 
 * Unconfined compression of a prism W x W x 2W: UCS = the peak of the mean platen force over W^2; Young's modulus
   from the secant between 20% and 50% of the peak.
-* Brazilian test of a disk of diameter D and thickness D/2 (axis along y), between platens normal to z:
-  sigma_t = 2 F_peak / (pi D t).
+* Brazilian test of a disk of diameter D and thickness D/2 (axis along y), flattened over FLAT_DEG at the two
+  platens normal to z: sigma_t = 2 F_peak / (pi D t). At 14 particles across the disk crushes at the flats before
+  it splits, so this is a lower bound that varies twofold between specimens.
+* Direct tension of a prism W x W x 2W, a diameter's layer at each end held and the top one pulled: the tensile
+  strength is the peak grip force over W^2.
 """
 
 from __future__ import annotations
