@@ -520,7 +520,7 @@ def tension_test(
 
 
 #: Specimen sizes (mean diameters across) of the study and of the CPU test.
-CALIBRATION_SIZES = {"study": {"ucs": 10.0, "brazilian": 14.0}, "tiny": {"ucs": 6.0, "brazilian": 8.0}}
+CALIBRATION_SIZES = {"study": {"ucs": 10.0, "brazilian": 14.0}, "tiny": {"ucs": 6.0, "brazilian": 12.0}}
 
 
 def calibrate(
