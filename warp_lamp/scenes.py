@@ -13,7 +13,9 @@ import numpy as np
 __all__ = [
     "CutScene",
     "Scene",
+    "box_porosity",
     "relax_packing",
+    "scene_box_specimen",
     "scene_cavity_block",
     "scene_cylinder_specimen",
     "scene_lattice_ball",
@@ -494,6 +496,70 @@ def scene_cylinder_specimen(
     centers, radii = _cached_packing("cylinder", params, build, cache=cache)
     name = f"cylinder specimen {diameter * 1e3:g} x {height * 1e3:g} mm, {int(particles)} particles"
     return Scene(name, centers, radii, np.zeros(3))
+
+
+def box_porosity(particles: int) -> float:
+    """Porosity a box of ``particles`` polydisperse spheres (Rmax/Rmin = 1.66) is packed at by default: near the
+    densest that the overlap relaxation reaches below 1% overlap, which rises as the walls take a larger share
+    (the cylinder specimen's rule plus 0.01 for the corners: 0.415 at 5,000 particles, 0.445 at 450)."""
+    return 0.39 + 0.35 * (1.8 / max(int(particles), 1)) ** (1.0 / 3.0)
+
+
+def scene_box_specimen(
+    size,
+    particle_diameter: float,
+    *,
+    ratio: float = 1.66,
+    porosity: float | None = None,
+    seed: int = 0,
+    device=None,
+    cache: bool = True,
+) -> Scene:
+    """A rock slab or a test prism: a dense random packing of polydisperse spheres in the box [0, size].
+
+    Radii are drawn uniform in [Rmin, ratio Rmin] and scaled together so that the spheres fill the box at
+    ``porosity`` with a mean diameter close to ``particle_diameter``; they are placed at random inside it and grown
+    to full size by the overlap relaxation of :func:`relax_packing` (the box as container) until no overlap exceeds
+    1% of the smaller radius. Cached on disk like :func:`scene_sphere_specimen`.
+
+    Args:
+        size: Box edges [m], three numbers; the box spans [0, size].
+        particle_diameter: Mean particle diameter [m] aimed at.
+        ratio: Rmax / Rmin.
+        porosity: Porosity of the box; :func:`box_porosity` of the particle count by default.
+        seed: Random seed.
+        device: Warp device for the relaxation: the CPU by default, so that the specimen is the same on every
+            machine (a GPU packing differs in its last digits; the cache keeps them apart).
+        cache: Read and write the on-disk cache.
+    """
+    size = np.asarray(size, dtype=np.float64).reshape(-1)
+    if size.shape != (3,) or not np.all(np.isfinite(size) & (size > 0)):
+        raise ValueError(f"size: expected three positive box edges [m], got {size.tolist()}")
+    if not (np.isfinite(particle_diameter) and particle_diameter > 0 and particle_diameter < size.min()):
+        raise ValueError(f"particle_diameter: expected a number in (0, {size.min()}) [m], got {particle_diameter!r}")
+    device = "cpu" if device is None else device
+    # Mean of d^3 for diameters uniform in [dmin, ratio dmin] with mean particle_diameter.
+    dmin = 2.0 * particle_diameter / (1.0 + ratio)
+    mean_d3 = dmin**3 * (ratio**4 - 1.0) / (4.0 * (ratio - 1.0)) if ratio != 1.0 else dmin**3
+    volume = float(np.prod(size))
+    if porosity is None:
+        porosity = box_porosity(round(0.58 * volume / (np.pi / 6.0 * mean_d3)))
+    if not 0.0 < porosity < 1.0:
+        raise ValueError(f"porosity: expected a number in (0, 1), got {porosity!r}")
+    count = max(1, round((1.0 - porosity) * volume / (np.pi / 6.0 * mean_d3)))
+
+    def build():
+        rng = np.random.default_rng(seed)
+        radii = rng.uniform(1.0, ratio, count)
+        radii *= ((1.0 - porosity) * volume / (4.0 / 3.0 * np.pi * np.sum(radii**3))) ** (1.0 / 3.0)
+        x0 = rng.uniform(radii[:, None], size - radii[:, None])
+        return relax_packing(x0, radii, box=(np.zeros(3), size), device=device), radii
+
+    params = dict(kind="box-specimen", size=size.tolist(), pd=particle_diameter, ratio=ratio, phi=porosity, seed=seed)
+    params["on"] = _device_kind(device)
+    centers, radii = _cached_packing("boxspec", params, build, cache=cache)
+    name = f"box specimen {' x '.join(f'{s * 1e3:g}' for s in size)} mm, {len(radii)} particles"
+    return Scene(name, centers, radii, size / 2.0)
 
 
 # --- cut blocks for the wetted-surface mode (warp_lamp.wetted) --------------------------------------------
