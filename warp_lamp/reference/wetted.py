@@ -315,6 +315,11 @@ class _Exact:
         self.diag = voxel_diagonal(h)
         self.tree = cKDTree(local) if len(r) else None
         self.rmax = float(r.max()) if len(r) else 0.0
+        # Exact copies (same centre and radius) share a group: a candidate on one is on all of them.
+        if len(r):
+            self.group = np.unique(np.column_stack([local, r]), axis=0, return_inverse=True)[1].reshape(-1)
+        else:
+            self.group = np.zeros(0, dtype=np.int64)
 
     def _near(self, x, reach):
         if self.tree is None:
@@ -324,11 +329,10 @@ class _Exact:
     def _own(self, near, own):
         """(M, K): sphere near[k] is one of candidate m's own spheres ``own[m]`` (-1: none) or an exact copy."""
         out = np.zeros((len(own), len(near)), dtype=bool)
+        g = self.group[near][None, :]
         for t in range(own.shape[1]):
             s = own[:, t]
-            same = np.all(self.c[near][None, :, :] == self.c[s][:, None, :], axis=-1)
-            same &= self.r[near][None, :] == self.r[s][:, None]
-            out |= (s >= 0)[:, None] & ((near[None, :] == s[:, None]) | same)
+            out |= (s >= 0)[:, None] & (g == self.group[np.maximum(s, 0)][:, None])
         return out
 
     def _reachable(self, z, own, others):
@@ -399,9 +403,10 @@ class _Exact:
         if self._any_valid(z[sel], own[sel], near):
             return True
         gated = np.flatnonzero(ok & (e2 <= rho2 * (1.0 + SLACK)))
-        ta = np.concatenate([np.full(len(ids) - pb[g] - 1, pa[g]) for g in gated] + [np.zeros(0, dtype=np.int64)])
-        tb = np.concatenate([np.full(len(ids) - pb[g] - 1, pb[g]) for g in gated] + [np.zeros(0, dtype=np.int64)])
-        tk = np.concatenate([np.arange(pb[g] + 1, len(ids)) for g in gated] + [np.zeros(0, dtype=np.int64)])
+        per = len(ids) - pb[gated] - 1  # third spheres after b
+        ta, tb = np.repeat(pa[gated], per), np.repeat(pb[gated], per)
+        start = np.repeat(np.cumsum(per) - per, per)
+        tk = np.arange(int(per.sum())) - start + tb + 1
         z1, z2, okv = _vertex_points(c[ta], big[ta], c[tb], big[tb], c[tk], big[tk])
         own = np.stack([ids[ta], ids[tb], ids[tk]], axis=1)
         zs = np.concatenate([z1, z2])
@@ -545,7 +550,7 @@ def _nearest(points, cen, rad, ids, tol, chunk=100_000):
 
 
 def wetted_reference(
-    centers, radii, grid: LampGrid, *, probe_radius: float, lamps="all", active=None, allowed=None
+    centers, radii, grid: LampGrid, *, probe_radius: float, lamps="all", active=None, allowed=None, in_frame=False
 ) -> WettedReference:
     """The wetted-surface mode in float64, by brute force over spheres and scipy over voxels.
 
@@ -559,6 +564,8 @@ def wetted_reference(
         active: Optional mask, shape (N,); inactive particles are absent.
         allowed: Optional allowed map, bool (nx, ny, nz), to replace the reference's own (to check the
             kernels' later stages on the kernels' own allowed map).
+        in_frame: ``centers`` are frame coordinates already (``grid.origin`` is not subtracted): pass the float32
+            positions the kernels saw to get their answer bit for bit.
     """
     n, h = _voxel_box(grid)
     rho = check_positive("probe_radius", probe_radius, allow_zero=True)
@@ -571,7 +578,7 @@ def wetted_reference(
         valid = np.isfinite(c).all(axis=1) & np.isfinite(r) & (r > 0)
     visible = on & valid
     invalid = int((on & ~valid).sum())
-    local = c[visible] - grid.origin
+    local = c[visible] if in_frame else c[visible] - grid.origin
     rv = r[visible]
     ids = np.flatnonzero(visible)
     size = n * h
