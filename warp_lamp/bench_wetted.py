@@ -113,7 +113,9 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     wp.config.quiet = True
     result = lone_sphere_convergence(offsets=args.offsets, device=args.device)
-    print(f"Lone sphere, load / (P pi r^2): mean / RMS error over {result['offsets']} grid offsets ({result['device']})")
+    print(
+        f"Lone sphere, load / (P pi r^2): mean / RMS error over {result['offsets']} grid offsets ({result['device']})"
+    )
     print()
     print(format_convergence(result))
     if args.out:

@@ -44,8 +44,8 @@ DIAG_GAPS = wp.constant(9)
 N_DIAG = 10
 #: ``candidate_check``'s answer for a valid candidate.
 CANDIDATE_OK = wp.constant(-2)
-#: Spheres a voxel's exact test keeps in a local list; with more near it walks the bins instead (same answer).
-NEAR_LIST = 32
+#: Spheres a point's exact test keeps in a local list (a uint64 mask marks them); with more it walks the bins.
+NEAR_LIST = 64
 NearList = wp.types.vector(length=NEAR_LIST, dtype=wp.int32)
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
@@ -1210,6 +1210,96 @@ def vertex_walk(
 
 
 @wp.func
+def covered_by_any(
+    x: wp.vec3d,
+    i: wp.int32,
+    span: BinSpan,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.bool:
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                j = bin_head(bx, by, bz, box, heads)
+                while j >= 0:
+                    if j != i and exposed[j] != 0 and gate_ok(x, j, positions, radii, box):
+                        if cap_covered(x, i, j, positions, radii, box):
+                            return True
+                    j = next_in_bin[j]
+    return False
+
+
+@wp.func
+def cap_covered(
+    x: wp.vec3d, i: wp.int32, j: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
+) -> wp.bool:
+    """Every point of inflated sphere i within rho of x lies inside inflated ball j, with a relative margin of
+    1e-6 in squared distance: then every candidate on sphere i (face, edge or vertex) is blocked by j, and the
+    search may drop i (pruning: the answer is the same; the margin covers the rounding of the candidates). The cap
+    is the set of points of sphere i at angle <= alpha from x's direction, ``cos alpha = (R_i^2 + d^2 - rho^2) /
+    (2 R_i d)``; its farthest point from c_j is at angle gamma + alpha from c_j's direction (the antipode when that
+    passes pi)."""
+    if same_sphere(j, i, positions, radii):
+        return False
+    rho = box.rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    big_j = wp.float64(radii[j]) + rho
+    v = x - ci
+    d2 = dot3(v, v)
+    e = centre_of(j, positions) - ci
+    l2 = dot3(e, e)
+    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
+        return False
+    d = wp.sqrt(d2)
+    el = wp.sqrt(l2)
+    ca = (big_i * big_i + d2 - rho * rho) / (wp.float64(2.0) * big_i * d)
+    if ca >= wp.float64(1.0):
+        return False
+    far2 = (big_i + el) * (big_i + el)
+    if ca > wp.float64(-1.0):
+        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
+        if cg + ca >= wp.float64(0.0):
+            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
+            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
+            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
+    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
+def gather_uncovered(
+    x: wp.vec3d,
+    span: BinSpan,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    box: WetBox,
+    ids: NearList,
+) -> wp.int32:
+    """The exposed spheres near x whose cap no other one's inflated ball covers, into ``ids`` (as many as fit);
+    returns how many there are. For more near spheres than the list holds: two bin walks."""
+    cnt = int(0)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
+                while i >= 0:
+                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                        if not covered_by_any(x, i, span, positions, radii, heads, next_in_bin, exposed, box):
+                            if cnt < NEAR_LIST:
+                                ids[cnt] = i
+                            cnt += 1
+                    i = next_in_bin[i]
+    return cnt
+
+
+@wp.func
 def probe_walk(
     x: wp.vec3d,
     span: BinSpan,
@@ -1350,6 +1440,7 @@ def probe_reaches(
             return True
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
     span = bin_span(x, near, box)
+    # The exposed spheres near x, less those whose cap within rho of x another one's inflated ball covers.
     ids = NearList()
     cnt = int(0)
     for bz in range(span.lo[2], span.hi[2] + 1):
@@ -1362,8 +1453,27 @@ def probe_reaches(
                             ids[cnt] = i
                         cnt += 1
                     i = next_in_bin[i]
-    if cnt > NEAR_LIST:
-        return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
+    if cnt <= NEAR_LIST:
+        kept = wp.uint64(0)
+        for a in range(cnt):
+            covered = int(0)
+            b = int(0)
+            while b < cnt and covered == 0:
+                if b != a and cap_covered(x, ids[a], ids[b], positions, radii, box):
+                    covered = 1
+                b += 1
+            if covered == 0:
+                kept = kept | (wp.uint64(1) << wp.uint64(a))
+        m = int(0)
+        for a in range(cnt):
+            if ((kept >> wp.uint64(a)) & wp.uint64(1)) != wp.uint64(0):
+                ids[m] = ids[a]
+                m += 1
+        cnt = m
+    else:
+        cnt = gather_uncovered(x, span, positions, radii, heads, next_in_bin, exposed, box, ids)
+        if cnt > NEAR_LIST:
+            return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
     # Increasing index order (insertion sort), so that pairs and triples come as the bin walk takes them.
     for a in range(1, cnt):
         key = ids[a]
