@@ -1,26 +1,36 @@
-"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issue 10).
+"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issues 10 and 19).
 
 The lamp loads only what each lamp sees first (the memo's limitation 1) and its rays reach deep particles
 through the channels between spheres (limitation 2). This mode loads the boundary of a fluid region instead:
 
-- **Allowed** probe centres: voxel centres x with ``|x - c_i| >= r_i + rho`` for every sphere (``rho`` is the
-  probe radius, :attr:`WettedSurface.probe_radius`).
-- **Reachable**: allowed voxels 6-connected to the outside of the box; everything beyond the box is allowed and
-  reachable.
-- **Fluid** (wetted): voxels whose centre lies within ``rho`` of a reachable voxel centre (outside the box
-  included); ``rho = 0``: fluid = reachable. "Within rho" is the offset set of :func:`dilation_table`. A fluid
-  centre is never strictly inside a sphere (triangle inequality), so no solid map is needed.
+- **Allowed** probe centres: points z with ``|z - c_i| >= r_i + rho`` for every sphere (``rho`` is the probe
+  radius, :attr:`WettedSurface.probe_radius`); at voxel centres they make the ``blocked`` map's complement.
+- **Reached**: allowed voxel centres 6-connected to the outside of the box; everything beyond the box is allowed
+  and reached.
+- **Fluid** (wetted) voxel centres x, decided exactly: x is fluid when a reachable probe centre lies within rho
+  of it. Within rho of a reached voxel centre (the offset set of :func:`dilation_table`) it is; strictly inside a
+  sphere (``|x - c_i|^2 < r_i^2``, the ``solid`` map) it is not; farther than :func:`band_radius` (rho plus one
+  voxel diagonal) from every reached voxel it is not; in between (the *uncertain band*) exact distances decide:
+  the candidate probe centres are the critical points of the union of inflated balls near x (radial projections
+  of x onto the inflated spheres, the nearest points of their pairwise intersection circles, their triple points),
+  and one counts when it is within rho of x, outside every other inflated ball, and reachable: a reached corner
+  of the voxel-centre cube that holds it joins it by a segment that enters no inflated ball. ``rho = 0``: fluid =
+  reached (up to voxel centres exactly on a sphere).
 - **Crossings**: along every voxel row of the three lamp grids, with virtual fluid beyond both ends of the box,
   every change from fluid to dry going +a is a +1 on axis a for the low lamp (``"-a"``, pushing +a), every change
-  from dry to fluid a -1 for the high lamp. They alternate along a row, so with both lamps of an axis on, the
-  counts of that axis sum to exactly zero.
+  from dry to fluid a -1 for the high lamp. **Thin chords**: a sphere chord that holds no voxel centre, between
+  two fluid samples of a row, is a dry interval the samples miss; thin chords between the same two samples merge
+  where they overlap or where the gap between them is dry (the exact test at its midpoint), and each merged
+  interval is one crossing of each direction. Crossings alternate along a row, so with both lamps of an axis on,
+  the counts of that axis sum to exactly zero.
 - **Attribution**: a crossing goes to the sphere nearest to the face between the two voxel centres, by
-  ``|p - c_i| - r_i`` in float64, ties to the lowest index. That sphere is never farther than
-  :func:`attribution_bound` (proof in the function's docstring), so a search within that bound cannot miss it.
+  ``|p - c_i| - r_i`` in float64, ties to the lowest index (never farther than :func:`attribution_bound`); a thin
+  interval's entry to the sphere whose chord starts it, its exit to the one whose chord reaches furthest.
 
-:class:`WettedSurface` runs the mode on the device, capture-safe; ``ShiningLamp(grid, surfaces="all",
-probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it; ``warp_lamp.reference.wetted`` is the float64
-NumPy/scipy reference.
+A lone sphere, or spheres the probe can go around, thus take on each low lamp exactly the cells criterion 1 gives
+them, for every rho >= 0 (bench/experiments/WETTED.md). :class:`WettedSurface` runs the mode on the device,
+capture-safe; ``ShiningLamp(grid, surfaces="all", probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it;
+``warp_lamp.reference.wetted`` is the float64 NumPy/scipy reference.
 """
 
 from __future__ import annotations
@@ -401,6 +411,7 @@ class WettedSurface:
         box.h = wp.vec3d(*self.h)
         box.rho = self.probe_radius
         box.diag = voxel_diagonal(self.h)
+        box.near_list = K.NEAR_LIST
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]

@@ -76,6 +76,9 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
         loaded_all=int(d.surface.sum()),
         loaded_first=int(lamp.diagnostics().surface.sum()),
         force_sum=(d.counts.sum(axis=0)).tolist(),
+        uncertain=d.uncertain,
+        rescued=d.rescued,
+        thin=d.thin,
     )
     if device.is_cuda:
         first = capture(device, lambda: lamp.update(pos, rad, in_frame=True))

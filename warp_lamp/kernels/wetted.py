@@ -64,6 +64,7 @@ class WetBox:
     bin_n: wp.vec3i  # bins of the nearest-sphere search per axis
     bin_edge: wp.float64  # bin edge [m]
     diag: wp.float64  # voxel diagonal sqrt(hx^2 + hy^2 + hz^2) [m]
+    near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
@@ -1271,35 +1272,6 @@ def cap_covered(
 
 
 @wp.func
-def gather_uncovered(
-    x: wp.vec3d,
-    span: BinSpan,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    exposed: wp.array[wp.int32],
-    box: WetBox,
-    ids: NearList,
-) -> wp.int32:
-    """The exposed spheres near x whose cap no other one's inflated ball covers, into ``ids`` (as many as fit);
-    returns how many there are. For more near spheres than the list holds: two bin walks."""
-    cnt = int(0)
-    for bz in range(span.lo[2], span.hi[2] + 1):
-        for by in range(span.lo[1], span.hi[1] + 1):
-            for bx in range(span.lo[0], span.hi[0] + 1):
-                i = bin_head(bx, by, bz, box, heads)
-                while i >= 0:
-                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
-                        if not covered_by_any(x, i, span, positions, radii, heads, next_in_bin, exposed, box):
-                            if cnt < NEAR_LIST:
-                                ids[cnt] = i
-                            cnt += 1
-                    i = next_in_bin[i]
-    return cnt
-
-
-@wp.func
 def probe_walk(
     x: wp.vec3d,
     span: BinSpan,
@@ -1440,7 +1412,10 @@ def probe_reaches(
             return True
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
     span = bin_span(x, near, box)
-    # The exposed spheres near x, less those whose cap within rho of x another one's inflated ball covers.
+    # The exposed spheres near x, less those whose cap within rho of x another one's inflated ball covers. With
+    # more near than the list holds (``box.near_list``), a second walk keeps only the uncovered ones; with more of
+    # those, the bin-walk search (the same answer, slower).
+    limit = box.near_list
     ids = NearList()
     cnt = int(0)
     for bz in range(span.lo[2], span.hi[2] + 1):
@@ -1449,11 +1424,11 @@ def probe_reaches(
                 i = bin_head(bx, by, bz, box, heads)
                 while i >= 0:
                     if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
-                        if cnt < NEAR_LIST:
+                        if cnt < limit:
                             ids[cnt] = i
                         cnt += 1
                     i = next_in_bin[i]
-    if cnt <= NEAR_LIST:
+    if cnt <= limit:
         kept = wp.uint64(0)
         for a in range(cnt):
             covered = int(0)
@@ -1471,8 +1446,19 @@ def probe_reaches(
                 m += 1
         cnt = m
     else:
-        cnt = gather_uncovered(x, span, positions, radii, heads, next_in_bin, exposed, box, ids)
-        if cnt > NEAR_LIST:
+        cnt = int(0)
+        for bz in range(span.lo[2], span.hi[2] + 1):
+            for by in range(span.lo[1], span.hi[1] + 1):
+                for bx in range(span.lo[0], span.hi[0] + 1):
+                    i = bin_head(bx, by, bz, box, heads)
+                    while i >= 0:
+                        if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                            if not covered_by_any(x, i, span, positions, radii, heads, next_in_bin, exposed, box):
+                                if cnt < limit:
+                                    ids[cnt] = i
+                                cnt += 1
+                        i = next_in_bin[i]
+        if cnt > limit:
             return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
     # Increasing index order (insertion sort), so that pairs and triples come as the bin walk takes them.
     for a in range(1, cnt):
