@@ -387,9 +387,10 @@ class WettedSurface:
         self._face_words = [ny * nz * (nwx + 1), nwx * (ny + 1) * nz, nwx * ny * (nz + 1)]
         self._slices = None  # threads per sphere in rasterize; None: chosen per update from N
         total = sum(self._face_words)
-        # Bits per crossing thread. On CUDA, one nearest-sphere search per thread while that stays under ~8M
-        # threads (latency rules small grids); large grids, whose crossings are spread over millions of threads
-        # anyway, take a word per thread. The CPU runs a launch on one thread: a word per thread there.
+        # Bits per crossing and per exact-test thread. On CUDA, one nearest-sphere search (or exact test) per thread
+        # while that stays under ~8M threads (latency rules small grids); large grids, whose crossings are spread
+        # over millions of threads anyway, take more bits per thread. The CPU runs a launch on one thread: a word
+        # per thread there.
         self._bits = 32
         if self.device.is_cuda:
             self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
@@ -590,7 +591,7 @@ class WettedSurface:
             )
         wp.launch(
             K.wet_classify,
-            dim=nw,
+            dim=nw * (32 // self._bits),
             inputs=[
                 positions,
                 radii,
@@ -602,6 +603,7 @@ class WettedSurface:
                 self.next_in_bin,
                 self.rmax,
                 self.exposed,
+                self._bits,
             ],
             outputs=[self.fluid, self.diag],
             device=d,

@@ -1584,17 +1584,22 @@ def wet_classify(
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
+    bits: wp.int32,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
 ):
-    """One thread per word: every voxel of the band (within rho + diagonal of a reached voxel) that the dilation
-    by rho left dry and that is not solid gets the exact test. Only this thread reads or writes its word of
-    ``fluid``."""
-    idx = wp.tid()
+    """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA, where one test's latency is long):
+    every voxel of the band (within rho + diagonal of a reached voxel) that the dilation by rho left dry and that
+    is not solid gets the exact test. A thread reads and sets only its own bits of ``fluid``."""
+    t = wp.tid()
+    splits = 32 / bits
+    idx = t / splits
+    sub = t - idx * splits
     wjk = word_coords(box, idx)
     w = wjk[0]
-    unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, w)
+    own = low_mask(bits) << wp.uint32(sub * bits)
+    unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, w) & own
     if unc == wp.uint32(0):
         return
     r_max = wp.float64(rmax[0])
@@ -1613,7 +1618,11 @@ def wet_classify(
         if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
-    fluid[idx] = fluid[idx] | add
+    if add != wp.uint32(0):
+        if bits == 32:
+            fluid[idx] = fluid[idx] | add
+        else:
+            wp.atomic_or(fluid, idx, add)
     wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
     wp.atomic_add(diag, DIAG_RESCUED, wet)
 
