@@ -47,6 +47,10 @@ CANDIDATE_OK = wp.constant(-2)
 #: Spheres a point's exact test keeps in a local list (a uint64 mask marks them); with more it walks the bins.
 NEAR_LIST = 64
 NearList = wp.types.vector(length=NEAR_LIST, dtype=wp.int32)
+#: Inflated balls holding a point deepest that the exact test keeps as the first covers of the near spheres' caps.
+DEEP = 8
+DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
+DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
 
@@ -1211,30 +1215,6 @@ def vertex_walk(
 
 
 @wp.func
-def covered_by_any(
-    x: wp.vec3d,
-    i: wp.int32,
-    span: BinSpan,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    exposed: wp.array[wp.int32],
-    box: WetBox,
-) -> wp.bool:
-    for bz in range(span.lo[2], span.hi[2] + 1):
-        for by in range(span.lo[1], span.hi[1] + 1):
-            for bx in range(span.lo[0], span.hi[0] + 1):
-                j = bin_head(bx, by, bz, box, heads)
-                while j >= 0:
-                    if j != i and exposed[j] != 0 and gate_ok(x, j, positions, radii, box):
-                        if cap_covered(x, i, j, positions, radii, box):
-                            return True
-                    j = next_in_bin[j]
-    return False
-
-
-@wp.func
 def cap_covered(
     x: wp.vec3d, i: wp.int32, j: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
 ) -> wp.bool:
@@ -1269,6 +1249,23 @@ def cap_covered(
             sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
             far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
     return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
+def covered_by_deep(
+    x: wp.vec3d,
+    i: wp.int32,
+    top: DeepIds,
+    ntop: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+) -> wp.bool:
+    """Sphere i's cap within rho of x lies inside one of the ``ntop`` inflated balls ``top``."""
+    for t in range(ntop):
+        if cap_covered(x, i, top[t], positions, radii, box):
+            return True
+    return False
 
 
 @wp.func
@@ -1412,40 +1409,42 @@ def probe_reaches(
             return True
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
     span = bin_span(x, near, box)
-    # The exposed spheres near x, less those whose cap within rho of x another one's inflated ball covers. With
-    # more near than the list holds (``box.near_list``), a second walk keeps only the uncovered ones; with more of
-    # those, the bin-walk search (the same answer, slower).
+    # The exposed spheres near x, less those whose cap within rho of x another sphere's inflated ball covers:
+    # first the DEEP balls that hold x deepest (they cover most), then the listed ones. With more near than the
+    # list holds (``box.near_list``), a second walk keeps only those the deep balls leave; with more of those, the
+    # bin-walk search (the same answer, slower).
     limit = box.near_list
     ids = NearList()
     cnt = int(0)
+    top = DeepIds()
+    depth = DeepDepths()
+    ntop = int(0)
     for bz in range(span.lo[2], span.hi[2] + 1):
         for by in range(span.lo[1], span.hi[1] + 1):
             for bx in range(span.lo[0], span.hi[0] + 1):
                 i = bin_head(bx, by, bz, box, heads)
                 while i >= 0:
+                    big = wp.float64(radii[i]) + rho
+                    v = x - centre_of(i, positions)
+                    d2 = dot3(v, v)
+                    if d2 < big * big:
+                        dep = big - wp.sqrt(d2)
+                        if ntop < DEEP or dep > depth[DEEP - 1]:
+                            slot = wp.min(ntop, DEEP - 1)
+                            if ntop < DEEP:
+                                ntop += 1
+                            while slot > 0 and depth[slot - 1] < dep:
+                                depth[slot] = depth[slot - 1]
+                                top[slot] = top[slot - 1]
+                                slot -= 1
+                            depth[slot] = dep
+                            top[slot] = i
                     if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
                         if cnt < limit:
                             ids[cnt] = i
                         cnt += 1
                     i = next_in_bin[i]
-    if cnt <= limit:
-        kept = wp.uint64(0)
-        for a in range(cnt):
-            covered = int(0)
-            b = int(0)
-            while b < cnt and covered == 0:
-                if b != a and cap_covered(x, ids[a], ids[b], positions, radii, box):
-                    covered = 1
-                b += 1
-            if covered == 0:
-                kept = kept | (wp.uint64(1) << wp.uint64(a))
-        m = int(0)
-        for a in range(cnt):
-            if ((kept >> wp.uint64(a)) & wp.uint64(1)) != wp.uint64(0):
-                ids[m] = ids[a]
-                m += 1
-        cnt = m
-    else:
+    if cnt > limit:
         cnt = int(0)
         for bz in range(span.lo[2], span.hi[2] + 1):
             for by in range(span.lo[1], span.hi[1] + 1):
@@ -1453,13 +1452,31 @@ def probe_reaches(
                     i = bin_head(bx, by, bz, box, heads)
                     while i >= 0:
                         if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
-                            if not covered_by_any(x, i, span, positions, radii, heads, next_in_bin, exposed, box):
+                            if not covered_by_deep(x, i, top, ntop, positions, radii, box):
                                 if cnt < limit:
                                     ids[cnt] = i
                                 cnt += 1
                         i = next_in_bin[i]
         if cnt > limit:
             return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
+    kept = wp.uint64(0)
+    for a in range(cnt):
+        covered = int(0)
+        if covered_by_deep(x, ids[a], top, ntop, positions, radii, box):
+            covered = 1
+        b = int(0)
+        while b < cnt and covered == 0:
+            if b != a and cap_covered(x, ids[a], ids[b], positions, radii, box):
+                covered = 1
+            b += 1
+        if covered == 0:
+            kept = kept | (wp.uint64(1) << wp.uint64(a))
+    m = int(0)
+    for a in range(cnt):
+        if ((kept >> wp.uint64(a)) & wp.uint64(1)) != wp.uint64(0):
+            ids[m] = ids[a]
+            m += 1
+    cnt = m
     # Increasing index order (insertion sort), so that pairs and triples come as the bin walk takes them.
     for a in range(1, cnt):
         key = ids[a]
