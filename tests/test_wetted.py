@@ -692,7 +692,7 @@ def test_capture_and_replay_equal_eager(device, rng):
         surface.update(pos, rad)
     for scene in (centers, moved):
         pos.assign(wp.array(np.asarray(scene - grid.origin, dtype=np.float32), dtype=wp.vec3, device=device))
-        for arr in (surface.fluid, surface.reach, surface.blocked):
+        for arr in (surface.fluid, surface.reach, surface.blocked, surface.solid, surface.band):
             arr.fill_(0x5A5A5A5A)  # garbage the replay must clear or overwrite
         surface.counts.fill_(7)
         wp.capture_launch(capture.graph)
@@ -701,18 +701,29 @@ def test_capture_and_replay_equal_eager(device, rng):
         np.testing.assert_array_equal(replay.counts, eager.counts)
         np.testing.assert_array_equal(replay.fluid, eager.fluid)
         assert replay.rounds == eager.rounds and replay.invalid == 0
+        assert (replay.uncertain, replay.rescued, replay.thin) == (eager.uncertain, eager.rescued, eager.thin)
+        assert replay.rescued > 0 and replay.thin > 0
 
 
 @pytest.mark.skipif(len(DEVICES) < 2, reason="needs a CUDA device")
 def test_cpu_and_cuda_bitwise_equal(rng):
-    """Maps, per-face owners and counts on CUDA are bitwise those of the CPU."""
+    """Maps, the exact test's verdicts, per-face owners, thin chords and counts on CUDA are bitwise those of the
+    CPU (every decision is float64 arithmetic and sqrt with fuse_fp off)."""
     scene = scene_slot_block((14, 14, 10), width=4, depth=4)
     for rho in (0.1, 0.45):
         cpu = wetted_solve(scene.centers, scene.radii, probe_radius=rho, keep_owners=True, device="cpu")
         dc = cpu.diagnostics()
         for dev in DEVICES[1:]:
             dg = wetted_solve(scene.centers, scene.radii, probe_radius=rho, keep_owners=True, device=dev).diagnostics()
+            np.testing.assert_array_equal(dc.band, dg.band)
             np.testing.assert_array_equal(dc.fluid, dg.fluid)
             np.testing.assert_array_equal(dc.counts, dg.counts)
+            assert (dc.uncertain, dc.rescued, dc.thin, dc.gap_tests) == (
+                dg.uncertain,
+                dg.rescued,
+                dg.thin,
+                dg.gap_tests,
+            )
             for a in range(3):
                 np.testing.assert_array_equal(dc.owners[a], dg.owners[a])
+                np.testing.assert_array_equal(dc.thin_faces[a], dg.thin_faces[a])
