@@ -91,9 +91,11 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
         assert rho == 0.0 or d.rescued > 500  # the exact test decided many voxels
         assert sum(len(ref.crossings[a]["face"]) for a in range(3)) > 1000
     # Every thread decomposition (threads per sphere, bits per crossing thread) and every path of the exact test
-    # (its local list of near spheres cut to 0 or 2: the second gather and the bin-walk search) give the same answer.
-    for slices, bits, near in ((3, 8, 0), (8, 1, 2), (1, 32, 64)):
-        surface._slices, surface._bits, surface._box.near_list = slices, bits, near
+    # (its local list of near spheres cut to 0 or 2: the second gather and the bin-walk search; no pruning of
+    # covered spheres) give the same answer.
+    for slices, bits, near, prune in ((3, 8, 0, 0), (8, 1, 2, 0), (1, 32, 64, 65)):
+        surface._slices, surface._bits = slices, bits
+        surface._box.near_list, surface._box.prune_from = near, prune
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
 

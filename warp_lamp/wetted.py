@@ -413,6 +413,7 @@ class WettedSurface:
         box.rho = self.probe_radius
         box.diag = voxel_diagonal(self.h)
         box.near_list = K.NEAR_LIST
+        box.prune_from = K.PRUNE_FROM
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]

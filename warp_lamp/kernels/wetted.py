@@ -47,6 +47,10 @@ CANDIDATE_OK = wp.constant(-2)
 #: Spheres a point's exact test keeps in a local list (a uint64 mask marks them); with more it walks the bins.
 NEAR_LIST = 64
 NearList = wp.types.vector(length=NEAR_LIST, dtype=wp.int32)
+#: Near spheres from which the exact test prunes those whose cap another ball covers: from any number (measured on
+#: the CPU, specimen and slot block at rho = d/4 ... d: pruning always was as fast as from 8 or 12, 1.5-7x faster
+#: than never); tests raise it past NEAR_LIST to check the unpruned search.
+PRUNE_FROM = 0
 #: Inflated balls holding a point deepest that the exact test keeps as the first covers of the near spheres' caps.
 DEEP = 8
 DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
@@ -69,6 +73,7 @@ class WetBox:
     bin_edge: wp.float64  # bin edge [m]
     diag: wp.float64  # voxel diagonal sqrt(hx^2 + hy^2 + hz^2) [m]
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
+    prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
@@ -1462,14 +1467,16 @@ def probe_reaches(
     kept = wp.uint64(0)
     for a in range(cnt):
         covered = int(0)
-        if covered_by_deep(x, ids[a], top, ntop, positions, radii, box):
+        if cnt < box.prune_from:
+            covered = -1
+        elif covered_by_deep(x, ids[a], top, ntop, positions, radii, box):
             covered = 1
         b = int(0)
         while b < cnt and covered == 0:
             if b != a and cap_covered(x, ids[a], ids[b], positions, radii, box):
                 covered = 1
             b += 1
-        if covered == 0:
+        if covered <= 0:
             kept = kept | (wp.uint64(1) << wp.uint64(a))
     m = int(0)
     for a in range(cnt):
@@ -1672,7 +1679,8 @@ def thin_chord(
     d[u] = centre_offset(iu, box.h[u], c[u])
     d[v] = centre_offset(iv, box.h[v], c[v])
     t2 = dot3(d, d)
-    if not (t2 < r2):
+    # A chord of half-length h_a or more holds the nearest centre well inside (by 3/4 h_a^2): never thin.
+    if not (t2 < r2) or r2 - t2 >= box.h[a] * box.h[a]:
         return out
     f = c[a] / box.h[a] - wp.float64(0.5)
     if not (f >= wp.float64(-1.0) and f < wp.float64(box.n[a])):
@@ -1764,8 +1772,16 @@ def wet_thin(
     r_max = wp.float64(rmax[0])
     us = span_from(c[u], r, box.h[u], box.n[u])
     vs = span_from(c[v], r, box.h[v], box.n[v])
+    r2 = r * r
+    ha2 = box.h[a] * box.h[a]
     for iv in range(vs[0], vs[1] + 1):
+        dv = centre_offset(iv, box.h[v], c[v])
         for iu in range(us[0], us[1] + 1):
+            du = centre_offset(iu, box.h[u], c[u])
+            # thin_chord's first test, cheaply (two terms add in either order, exactly): most rows end here.
+            t2 = du * du + dv * dv
+            if not (t2 < r2) or r2 - t2 >= ha2:
+                continue
             me = thin_chord(s, a, iu, iv, positions, radii, box)
             if me.ok == 0:
                 continue
