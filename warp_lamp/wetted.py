@@ -333,15 +333,21 @@ class WettedSurface:
     loop (one host read of its flag per round when run eagerly on CUDA, none in a graph). Invalid particles are
     skipped and counted, never raised.
 
+    Accuracy: fluid and dry are decided exactly at every voxel centre, and chords shorter than a cell are loaded,
+    so a lone sphere (or spheres the probe can go around) takes exactly the cells criterion 1 gives it, for every
+    rho; the loads converge like criterion 1's as the cells shrink. The topology (which pores the probe reaches)
+    is the voxel connectivity's: near a packing's window size it still moves with the cells.
+
     Choosing ``probe_radius`` (rho): the probe cannot pass a pore window narrower than itself, and the fluid's
     boundary bridges gaps between surface particles narrower than about 2 rho. Dense packings keep it out of their
     pores from rho of about a quarter to a third of the mean diameter (measured: a jittered cubic lattice is
     sealed from 0.33 d, the random SphereTest packing has no wetted particle deeper than a diameter from 0.3 d).
     For a membrane that follows the surface particles, take that up to one mean radius (the slot block's walls and
-    floor then get 0.95 of P A). For mud, which fills a trough several diameters wide but not the pores, one to
-    two mean radii: a larger probe rounds concave corners to radius rho, and as rho grows the loaded surface
-    becomes the convex hull. rho -> 0 lets the fluid into every connected pore. Give the box a margin of rho
-    plus a cell beyond the particles (``diagnostics().tight`` counts those closer).
+    floor then get 0.94 and 0.96-0.97 of P A, the same at 4, 6 and 8 cells per diameter). For mud, which fills a
+    trough several diameters wide but not the pores, one to two mean radii: a larger probe rounds concave corners
+    to radius rho, and as rho grows the loaded surface becomes the convex hull. rho -> 0 lets the fluid into every
+    connected pore. Give the box a margin of rho plus a cell beyond the particles (``diagnostics().tight`` counts
+    those closer).
     """
 
     def __init__(
