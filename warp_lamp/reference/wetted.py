@@ -33,7 +33,14 @@ import numpy as np
 from warp_lamp.grid import LampGrid
 from warp_lamp.validate import check_positive, lamp_mask
 
-__all__ = ["WettedReference", "attribution_bound", "band_radius", "dilation_table", "wetted_reference"]
+__all__ = [
+    "WettedReference",
+    "attribution_bound",
+    "band_radius",
+    "dilation_table",
+    "voxel_diagonal",
+    "wetted_reference",
+]
 
 #: Unit roundoff of float32.
 EPS32 = 2.0**-24
