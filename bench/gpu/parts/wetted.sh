@@ -12,7 +12,8 @@ DEVICE="${DEVICE:-cuda:0}"
 mkdir -p "$OUT"
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 if [ "$DEVICE" != "cpu" ]; then
-  nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv | tee "$OUT/gpu.txt"
+  # The lease preamble: the GPU named, the carried test extras (scipy, for the reference) installed.
+  source "$(dirname "$0")/../preamble.sh"
   # The CUDA cases of the wetted tests (the CPU ones ran on the dev machine).
   python3 -m pytest -q -p no:cacheprovider tests/test_wetted.py -k "cuda" 2>&1 | tee "$OUT/wetted-pytest.log" | tail -5
 fi
