@@ -1,26 +1,36 @@
-"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issue 10).
+"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issues 10 and 19).
 
 The lamp loads only what each lamp sees first (the memo's limitation 1) and its rays reach deep particles
 through the channels between spheres (limitation 2). This mode loads the boundary of a fluid region instead:
 
-- **Allowed** probe centres: voxel centres x with ``|x - c_i| >= r_i + rho`` for every sphere (``rho`` is the
-  probe radius, :attr:`WettedSurface.probe_radius`).
-- **Reachable**: allowed voxels 6-connected to the outside of the box; everything beyond the box is allowed and
-  reachable.
-- **Fluid** (wetted): voxels whose centre lies within ``rho`` of a reachable voxel centre (outside the box
-  included); ``rho = 0``: fluid = reachable. "Within rho" is the offset set of :func:`dilation_table`. A fluid
-  centre is never strictly inside a sphere (triangle inequality), so no solid map is needed.
+- **Allowed** probe centres: points z with ``|z - c_i| >= r_i + rho`` for every sphere (``rho`` is the probe
+  radius, :attr:`WettedSurface.probe_radius`); at voxel centres they make the ``blocked`` map's complement.
+- **Reached**: allowed voxel centres 6-connected to the outside of the box; everything beyond the box is allowed
+  and reached.
+- **Fluid** (wetted) voxel centres x, decided exactly: x is fluid when a reachable probe centre lies within rho
+  of it. Within rho of a reached voxel centre (the offset set of :func:`dilation_table`) it is; strictly inside a
+  sphere (``|x - c_i|^2 < r_i^2``, the ``solid`` map) it is not; farther than :func:`band_radius` (rho plus one
+  voxel diagonal) from every reached voxel it is not; in between (the *uncertain band*) exact distances decide:
+  the candidate probe centres are the critical points of the union of inflated balls near x (radial projections
+  of x onto the inflated spheres, the nearest points of their pairwise intersection circles, their triple points),
+  and one counts when it is within rho of x, outside every other inflated ball, and reachable: a reached corner
+  of the voxel-centre cube that holds it joins it by a segment that enters no inflated ball. ``rho = 0``: fluid =
+  reached (up to voxel centres exactly on a sphere).
 - **Crossings**: along every voxel row of the three lamp grids, with virtual fluid beyond both ends of the box,
   every change from fluid to dry going +a is a +1 on axis a for the low lamp (``"-a"``, pushing +a), every change
-  from dry to fluid a -1 for the high lamp. They alternate along a row, so with both lamps of an axis on, the
-  counts of that axis sum to exactly zero.
+  from dry to fluid a -1 for the high lamp. **Thin chords**: a sphere chord that holds no voxel centre, between
+  two fluid samples of a row, is a dry interval the samples miss; thin chords between the same two samples merge
+  where they overlap or where the gap between them is dry (the exact test at its midpoint), and each merged
+  interval is one crossing of each direction. Crossings alternate along a row, so with both lamps of an axis on,
+  the counts of that axis sum to exactly zero.
 - **Attribution**: a crossing goes to the sphere nearest to the face between the two voxel centres, by
-  ``|p - c_i| - r_i`` in float64, ties to the lowest index. That sphere is never farther than
-  :func:`attribution_bound` (proof in the function's docstring), so a search within that bound cannot miss it.
+  ``|p - c_i| - r_i`` in float64, ties to the lowest index (never farther than :func:`attribution_bound`); a thin
+  interval's entry to the sphere whose chord starts it, its exit to the one whose chord reaches furthest.
 
-:class:`WettedSurface` runs the mode on the device, capture-safe; ``ShiningLamp(grid, surfaces="all",
-probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it; ``warp_lamp.reference.wetted`` is the float64
-NumPy/scipy reference.
+A lone sphere, or spheres the probe can go around, thus take on each low lamp exactly the cells criterion 1 gives
+them, for every rho >= 0 (bench/experiments/WETTED.md). :class:`WettedSurface` runs the mode on the device,
+capture-safe; ``ShiningLamp(grid, surfaces="all", probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it;
+``warp_lamp.reference.wetted`` is the float64 NumPy/scipy reference.
 """
 
 from __future__ import annotations
@@ -46,15 +56,17 @@ __all__ = [
     "WettedDiagnostics",
     "WettedSurface",
     "attribution_bound",
+    "band_radius",
     "check_probe_radius",
     "dilation_table",
     "unpack_bits",
     "voxel_box",
+    "voxel_diagonal",
     "wetted_nbytes",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link.
-BYTES_PER_PARTICLE = 32
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
+BYTES_PER_PARTICLE = 36
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
@@ -143,23 +155,43 @@ def dilation_table(h, probe_radius) -> np.ndarray:
     return table
 
 
-def attribution_bound(h_a: float, probe_radius: float) -> float:
-    """Largest possible distance ``|p - c| - r`` from a crossing point on a lamp axis with voxel edge ``h_a`` to
-    its nearest sphere: ``B = rho + sqrt((rho + h_a/2)^2 + (h_a/2)^2)`` [m] (at most ``2 rho + h_a``).
+def voxel_diagonal(h) -> float:
+    """The voxel diagonal ``sqrt(hx^2 + hy^2 + hz^2)`` [m] (float64, in this order)."""
+    hx, hy, hz = (float(x) for x in h)
+    return float(np.sqrt((hx * hx + hy * hy) + hz * hz))
+
+
+def band_radius(h, probe_radius) -> float:
+    """Radius of the uncertain band [m]: ``(rho + diagonal) (1 + 1e-9)``. A voxel centre x is fluid through a probe
+    centre z within rho of it, reachable from a corner of the voxel-centre cube that holds z (within one diagonal of
+    z), so every fluid voxel lies within rho + diagonal of a reached one; the factor covers float64 rounding."""
+    return (float(probe_radius) + voxel_diagonal(h)) * (1.0 + 1e-9)
+
+
+def attribution_bound(h, probe_radius) -> np.ndarray:
+    """Largest possible distance ``|p - c| - r`` from a crossing point on lamp axis a to its nearest sphere, per
+    axis: ``B_a = rho + sqrt((rho + h_a/2 + g)^2 + (h_a/2)^2)`` [m], g the voxel diagonal (at most ``2 rho + h_a +
+    g``), shape (3,).
 
     Proof. Let a crossing join fluid voxel x_f and dry voxel x_d along axis a, p the face between them
-    (``|x_d - p| = h_a / 2``). Fluid means a reachable point y (a voxel centre, or a lattice point outside the box)
-    with ``|y - x_f| <= rho``, so ``|y - p| <= rho + h_a/2``. Suppose every sphere has ``|p - c_i| - r_i > B``.
-    A staircase lattice path from y to x_d stays in the axis-aligned box spanned by y and x_d; each of its points
-    z has, per coordinate, ``|z - p|`` at most the larger of y's and x_d's, so
-    ``|z - p|^2 <= |y - p|^2 + |x_d - p|^2 <= (rho + h_a/2)^2 + (h_a/2)^2 = (B - rho)^2``. Then
-    ``|z - c_i| > r_i + rho`` for every sphere: every voxel on the path is allowed, so x_d is reachable from y,
-    hence fluid: a contradiction. So some sphere lies within B of p. The virtual fluid beyond the row ends is the
-    case y = x_f. The kernels add a relative margin of 1e-9 for float64 rounding.
+    (``|x_d - p| = h_a / 2``). Fluid means a reached point y (a voxel centre, or a lattice point outside the box)
+    within rho + g of x_f: either within rho (the dilation), or a probe centre z within rho of x_f is reachable from
+    a corner y of the voxel-centre cube holding z (``|y - z| <= g``). So ``|y - p| <= rho + g + h_a/2``. Suppose
+    every sphere has ``|p - c_i| - r_i > B_a``. A staircase lattice path from y to x_d stays in the axis-aligned box
+    spanned by y and x_d; each of its points w has, per coordinate, ``|w - p|`` at most the larger of y's and
+    x_d's, so ``|w - p|^2 <= |y - p|^2 + |x_d - p|^2 <= (B_a - rho)^2``. Then ``|w - c_i| > r_i + rho`` for every
+    sphere: every voxel on the path is allowed, so x_d is reached, hence fluid: a contradiction. The virtual fluid
+    beyond the row ends is the case y = x_f. The kernels add a relative margin of 1e-9 for float64 rounding.
+    Crossings of thin chords go to the chord's sphere and need no search.
+
+    Args:
+        h: Voxel edge per axis [m], 3 values.
+        probe_radius: rho [m].
     """
-    half = 0.5 * float(h_a)
+    g = voxel_diagonal(h)
     rho = float(probe_radius)
-    return rho + float(np.hypot(rho + half, half))
+    half = 0.5 * np.asarray(h, dtype=np.float64)
+    return rho + np.hypot(rho + half + g, half)
 
 
 def unpack_bits(words: np.ndarray, shape) -> np.ndarray:
@@ -178,8 +210,9 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     if n_words >= 2**31 // 8 or int(n.prod()) >= 2**31 - 1:
         raise ValueError(f"grid: {int(n.prod()):,} voxels are too many for the wetted-surface mode (int32 indices)")
     table = dilation_table(h, rho)
+    table_band = dilation_table(h, band_radius(h, rho))
     size = n * h
-    bound = np.array([attribution_bound(h[a], rho) for a in range(3)])
+    bound = attribution_bound(h, rho)
     # float64 rounding of the allowed test and of the distances is far below this margin.
     bound_search = bound + 1e-9 * (bound + float(np.linalg.norm(size)))
     edge = max(float(bound.max()), 2.0 * float(h.max()))
@@ -187,14 +220,15 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     while int(bins.prod()) > MAX_BINS:
         edge *= 1.25
         bins = np.maximum(np.ceil(size / edge), 1).astype(np.int64)
-    planes = table.shape[1]
-    small = 4 * table.size + 4 * (K.N_DIAG + 4)  # offset table, diagnostics, r_max, loop flags
+    # The two dilations share the planes; the band's table is the wider.
+    planes = max(table.shape[1], table_band.shape[1])
+    small = 4 * (table.size + table_band.size) + 4 * (K.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
     # Segments of about sqrt(n) rows: summary, carry and apply threads then each walk ~2 sqrt(n) words.
     seg = [0] + [max(4, round(float(np.sqrt(float(n[a]))))) for a in (1, 2)]
     n_seg = [0] + [-(-int(n[a]) // seg[a]) for a in (1, 2)]
     columns = [0, nwx * int(n[2]), nwx * int(n[1])]
     scan = max(columns[1] * n_seg[1], columns[2] * n_seg[2])
-    nbytes = 4 * n_words * (3 + planes) + 4 * int(bins.prod()) + 4 * grid.n_cells + 3 * 4 * scan + small
+    nbytes = 4 * n_words * (5 + planes) + 4 * int(bins.prod()) + 4 * grid.n_cells + 3 * 4 * scan + small
     faces = [int(grid.counts[a].prod()) * (int(n[a]) + 1) for a in range(3)]
     return dict(
         n=n,
@@ -202,6 +236,8 @@ def _layout(grid: LampGrid, rho: float) -> dict:
         nwx=nwx,
         n_words=n_words,
         table=table,
+        table_band=table_band,
+        planes=planes,
         bound=bound_search,
         edge=edge,
         bins=bins,
@@ -215,12 +251,13 @@ def _layout(grid: LampGrid, rho: float) -> dict:
 
 
 def wetted_nbytes(grid: LampGrid, probe_radius: float, *, keep_owners: bool = False) -> int:
-    """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: three bitmaps (blocked,
-    reached, fluid) and one per |dz| of the probe's offsets (one bit per voxel each), three words per segment
-    (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few scalars; with
-    ``keep_owners``, one int32 per voxel face of the three axes. Particles add :data:`BYTES_PER_PARTICLE` each."""
+    """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: five bitmaps (blocked,
+    solid, reached, fluid, band) and one per |dz| of the band's offsets (one bit per voxel each), three words per
+    segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
+    scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
+    chords there). Particles add :data:`BYTES_PER_PARTICLE` each."""
     lay = _layout(grid, check_probe_radius(probe_radius))
-    return lay["nbytes"] + (4 * sum(lay["faces"]) if keep_owners else 0)
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0)
 
 
 @dataclass
@@ -234,6 +271,8 @@ class WettedDiagnostics:
         fluid: Wetted voxels, shape (nx, ny, nz), bool (indexed [x, y, z], centres at lower + (index + 1/2) h).
         allowed: Voxels where the probe centre may stand, shape (nx, ny, nz), bool.
         reachable: Allowed voxels the connectivity solve joined to the outside, shape (nx, ny, nz), bool.
+        band: Voxels within :func:`band_radius` of a reached one (the only ones that can be fluid), shape
+            (nx, ny, nz), bool.
         crossings: Per lamp grid a (0, 1, 2), fluid-to-dry crossings on each ray, shape (n_u, n_v) like the lamp's
             owner maps (the dry-to-fluid crossings are as many).
         loaded: Per lamp name, crossings it loaded (0 for a lamp that is off).
@@ -243,12 +282,19 @@ class WettedDiagnostics:
             box, which the mode takes as allowed and reachable: the box is too tight for the probe there, and
             the fluid there may differ from that of a larger box (give the box a margin of rho + one cell).
         unattributed: Crossings with no sphere found (never expected; each breaks the balance by one count).
+        uncertain: Voxels of the band that the dilation by rho left dry and the exact test decided.
+        rescued: Of those, the ones it found fluid.
+        thin: Thin dry intervals loaded (merged sphere chords between two fluid samples that hold no voxel
+            centre); each is one crossing of each direction on its ray.
+        gap_tests: Exact tests of the gaps between thin chords (work done, counted by every thread that made one).
         rounds: Connectivity rounds of the last update.
         nonconverged: Whether the last connectivity solve stopped at ``max_rounds`` (reachable is then too small).
         nonconverged_total: Connectivity solves cut short since construction.
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found; else None.
+        thin_faces: With ``keep_owners``, per lamp grid a, the thin dry intervals between the samples on either
+            side of each face, shape (n_u, n_v, n_a + 1); else None.
         force: Resultant force [N], shape (3,), when a pressure was given.
     """
 
@@ -258,16 +304,22 @@ class WettedDiagnostics:
     fluid: np.ndarray
     allowed: np.ndarray
     reachable: np.ndarray
+    band: np.ndarray
     crossings: dict
     loaded: dict
     invalid: int
     outside: int
     tight: int
     unattributed: int
+    uncertain: int
+    rescued: int
+    thin: int
+    gap_tests: int
     rounds: int
     nonconverged: bool
     nonconverged_total: int
     owners: dict | None = None
+    thin_faces: dict | None = None
     force: np.ndarray | None = None
 
 
@@ -281,15 +333,21 @@ class WettedSurface:
     loop (one host read of its flag per round when run eagerly on CUDA, none in a graph). Invalid particles are
     skipped and counted, never raised.
 
+    Accuracy: fluid and dry are decided exactly at every voxel centre, and chords shorter than a cell are loaded,
+    so a lone sphere (or spheres the probe can go around) takes exactly the cells criterion 1 gives it, for every
+    rho; the loads converge like criterion 1's as the cells shrink. The topology (which pores the probe reaches)
+    is the voxel connectivity's: near a packing's window size it still moves with the cells.
+
     Choosing ``probe_radius`` (rho): the probe cannot pass a pore window narrower than itself, and the fluid's
     boundary bridges gaps between surface particles narrower than about 2 rho. Dense packings keep it out of their
     pores from rho of about a quarter to a third of the mean diameter (measured: a jittered cubic lattice is
     sealed from 0.33 d, the random SphereTest packing has no wetted particle deeper than a diameter from 0.3 d).
     For a membrane that follows the surface particles, take that up to one mean radius (the slot block's walls and
-    floor then get 0.95 of P A). For mud, which fills a trough several diameters wide but not the pores, one to
-    two mean radii: a larger probe rounds concave corners to radius rho, and as rho grows the loaded surface
-    becomes the convex hull. rho -> 0 lets the fluid into every connected pore. Give the box a margin of rho
-    plus a cell beyond the particles (``diagnostics().tight`` counts those closer).
+    floor then get 0.94 and 0.96-0.97 of P A, the same at 4, 6 and 8 cells per diameter). For mud, which fills a
+    trough several diameters wide but not the pores, one to two mean radii: a larger probe rounds concave corners
+    to radius rho, and as rho grows the loaded surface becomes the convex hull. rho -> 0 lets the fluid into every
+    connected pore. Give the box a margin of rho plus a cell beyond the particles (``diagnostics().tight`` counts
+    those closer).
     """
 
     def __init__(
@@ -327,7 +385,7 @@ class WettedSurface:
         self.max_rounds = int(max_rounds)
         self.device = wp.get_device(device)
         lay = _layout(grid, self.probe_radius)
-        self.nbytes = lay["nbytes"] + (4 * sum(lay["faces"]) if keep_owners else 0)
+        self.nbytes = lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0)
         self._faces = lay["faces"]
         self._seg = lay["seg"]
         self._n_seg = lay["n_seg"]
@@ -335,9 +393,10 @@ class WettedSurface:
         self._face_words = [ny * nz * (nwx + 1), nwx * (ny + 1) * nz, nwx * ny * (nz + 1)]
         self._slices = None  # threads per sphere in rasterize; None: chosen per update from N
         total = sum(self._face_words)
-        # Bits per crossing thread. On CUDA, one nearest-sphere search per thread while that stays under ~8M
-        # threads (latency rules small grids); large grids, whose crossings are spread over millions of threads
-        # anyway, take a word per thread. The CPU runs a launch on one thread: a word per thread there.
+        # Bits per crossing and per exact-test thread. On CUDA, one nearest-sphere search (or exact test) per thread
+        # while that stays under ~8M threads (latency rules small grids); large grids, whose crossings are spread
+        # over millions of threads anyway, take more bits per thread. The CPU runs a launch on one thread: a word
+        # per thread there.
         self._bits = 32
         if self.device.is_cuda:
             self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
@@ -351,17 +410,19 @@ class WettedSurface:
         self.shape = tuple(int(x) for x in lay["n"])
         self.h = lay["h"]
         self.table = lay["table"]
+        self.table_band = lay["table_band"]
         box = K.WetBox()
         box.n = wp.vec3i(*self.shape)
         box.nwx = lay["nwx"]
         box.n_words = lay["n_words"]
         box.h = wp.vec3d(*self.h)
         box.rho = self.probe_radius
+        box.diag = voxel_diagonal(self.h)
+        box.near_list = K.NEAR_LIST
+        box.prune_from = K.PRUNE_FROM
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]
-        box.wy = self.table.shape[0] - 1
-        box.wz = self.table.shape[1] - 1
         box.lamp_mask = self.lamp_mask
         box.offset = wp.vec3i(*(int(x) for x in grid.offsets))
         box.face_offset = wp.vec3i(0, self._faces[0], self._faces[0] + self._faces[1])
@@ -371,14 +432,18 @@ class WettedSurface:
         self.blocked = wp.zeros(nw, dtype=wp.uint32, device=d)
         self.reach = wp.zeros(nw, dtype=wp.uint32, device=d)
         self.fluid = wp.zeros(nw, dtype=wp.uint32, device=d)
+        self.band = wp.zeros(nw, dtype=wp.uint32, device=d)
+        self.solid = wp.zeros(nw, dtype=wp.uint32, device=d)
         self.seg_pass = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
         self.seg_up = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
         self.seg_down = wp.zeros(lay["scan"], dtype=wp.uint32, device=d)
-        self.planes = wp.zeros(nw * self.table.shape[1], dtype=wp.uint32, device=d)
+        self.planes = wp.zeros(nw * lay["planes"], dtype=wp.uint32, device=d)
         self.heads = wp.full(int(lay["bins"].prod()), -1, dtype=wp.int32, device=d)
         self.rays = wp.zeros(grid.n_cells, dtype=wp.int32, device=d)
         self.owners = wp.full(sum(self._faces) if keep_owners else 0, -2, dtype=wp.int32, device=d)
+        self.thin_faces = wp.zeros(sum(self._faces) if keep_owners else 0, dtype=wp.int32, device=d)
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
+        self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
@@ -387,6 +452,7 @@ class WettedSurface:
         self.counts = wp.zeros(0, dtype=wp.int64, device=d)
         self.hits = wp.zeros(0, dtype=wp.int32, device=d)
         self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
+        self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
@@ -406,6 +472,7 @@ class WettedSurface:
             self.counts = wp.zeros(3 * n, dtype=wp.int64, device=self.device)
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -422,9 +489,9 @@ class WettedSurface:
         self._update(positions, radii, active)
 
     #: Stages of an update, in order; ``_update(..., stop=s)`` runs the stages up to and including s (benchmarks).
-    STAGES = ("rasterize", "connect", "dilate", "cross")
+    STAGES = ("rasterize", "connect", "dilate", "classify", "cross", "thin")
 
-    def _update(self, positions, radii, active, stop: str = "cross") -> None:
+    def _update(self, positions, radii, active, stop: str = "thin") -> None:
         last = self.STAGES.index(stop)
         n = check_particle_arrays(positions, radii, active, self.device, "the wetted surface")
         if active is None:
@@ -443,11 +510,13 @@ class WettedSurface:
             device=d,
         )
         self.blocked.zero_()
+        self.solid.zero_()
         self.reach.zero_()
         self.rays.zero_()
         self.heads.fill_(-1)
         if self.owners.shape[0] > 0:
             self.owners.fill_(-2)
+            self.thin_faces.zero_()
         if n > 0:
             # Enough threads to fill a GPU: a small body gets up to 8 per sphere, one per few z layers.
             slices = self._slices or self._auto_slices(n)
@@ -455,7 +524,7 @@ class WettedSurface:
                 K.wet_rasterize,
                 dim=n * slices,
                 inputs=[positions, radii, active, box, slices],
-                outputs=[self.blocked, self.heads, self.next_in_bin, self.rmax, self.diag],
+                outputs=[self.blocked, self.solid, self.heads, self.next_in_bin, self.rmax, self.diag],
                 device=d,
             )
 
@@ -510,9 +579,43 @@ class WettedSurface:
             wp.capture_while(self.cond, round_body)
         if last < 2:
             return
-        wp.launch(K.wet_dilate_y, dim=nw, inputs=[box, self.reach, self._table], outputs=[self.planes], device=d)
-        wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, self.planes], outputs=[self.fluid], device=d)
+        for table, dims, out in (
+            (self._table, self.table.shape, self.fluid),
+            (self._table_band, self.table_band.shape, self.band),
+        ):
+            wy, wz = dims[0] - 1, dims[1] - 1
+            wp.launch(K.wet_dilate_y, dim=nw, inputs=[box, wy, wz, self.reach, table], outputs=[self.planes], device=d)
+            wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, wz, self.planes], outputs=[out], device=d)
         if last < 3:
+            return
+        if n > 0:
+            wp.launch(
+                K.wet_expose,
+                dim=n,
+                inputs=[positions, radii, active, box, self.reach],
+                outputs=[self.exposed],
+                device=d,
+            )
+        wp.launch(
+            K.wet_classify,
+            dim=nw * (32 // self._bits),
+            inputs=[
+                positions,
+                radii,
+                box,
+                self.reach,
+                self.band,
+                self.solid,
+                self.heads,
+                self.next_in_bin,
+                self.rmax,
+                self.exposed,
+                self._bits,
+            ],
+            outputs=[self.fluid, self.diag],
+            device=d,
+        )
+        if last < 4:
             return
         per_word = 32 // self._bits
         first = wp.vec3i(0, self._face_words[0] * per_word, (self._face_words[0] + self._face_words[1]) * per_word)
@@ -521,6 +624,26 @@ class WettedSurface:
             dim=sum(self._face_words) * per_word,
             inputs=[positions, radii, box, first, self._bits, self.fluid, self.heads, self.next_in_bin, self.rmax],
             outputs=[self.counts, self.hits, self.rays, self.diag, self.owners],
+            device=d,
+        )
+        if last < 5 or n == 0:
+            return
+        wp.launch(
+            K.wet_thin,
+            dim=3 * n,
+            inputs=[
+                positions,
+                radii,
+                active,
+                box,
+                self.fluid,
+                self.reach,
+                self.heads,
+                self.next_in_bin,
+                self.rmax,
+                self.exposed,
+            ],
+            outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
             device=d,
         )
 
@@ -555,24 +678,31 @@ class WettedSurface:
             fluid=unpack_bits(self.fluid.numpy(), self.shape),
             allowed=~unpack_bits(self.blocked.numpy(), self.shape),
             reachable=unpack_bits(self.reach.numpy(), self.shape),
+            band=unpack_bits(self.band.numpy(), self.shape),
             crossings=crossings,
             loaded=loaded,
             invalid=int(diag[K.DIAG_INVALID]),
             outside=int(diag[K.DIAG_OUTSIDE]),
             tight=int(diag[K.DIAG_TIGHT]),
             unattributed=int(diag[K.DIAG_UNATTRIBUTED]),
+            uncertain=int(diag[K.DIAG_UNCERTAIN]),
+            rescued=int(diag[K.DIAG_RESCUED]),
+            thin=int(diag[K.DIAG_THIN]),
+            gap_tests=int(diag[K.DIAG_GAPS]),
             rounds=int(diag[K.DIAG_ROUNDS]),
             nonconverged=bool(diag[K.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
         )
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
-            out.owners = {}
+            thin = self.thin_faces.numpy()
+            out.owners, out.thin_faces = {}, {}
             start = 0
             for a in range(3):
                 nu, nv = (int(x) for x in g.counts[a])
-                block = own[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
-                out.owners[a] = block.transpose(1, 0, 2).copy()
+                for src, dst in ((own, out.owners), (thin, out.thin_faces)):
+                    block = src[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
+                    dst[a] = block.transpose(1, 0, 2).copy()
                 start += self._faces[a]
         if pressure is not None:
             out.force = (counts * pressure_area(pressure, g)).sum(axis=0)

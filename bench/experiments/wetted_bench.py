@@ -7,6 +7,7 @@ apart, updated in turn), and stage times as differences of graphs that stop afte
 
     PYTHONPATH=$PWD python bench/experiments/wetted_bench.py --device cuda:0 --out $OUT/wetted.json
     PYTHONPATH=$PWD python bench/experiments/wetted_bench.py --device cpu --quick
+    PYTHONPATH=$PWD python bench/experiments/wetted_bench.py --device cpu --only specimen slot --rho-diameters 0.5 1
 """
 
 import argparse
@@ -76,6 +77,10 @@ def bench_scene(name, scene, cell, rho_d, device, repeats):
         loaded_all=int(d.surface.sum()),
         loaded_first=int(lamp.diagnostics().surface.sum()),
         force_sum=(d.counts.sum(axis=0)).tolist(),
+        # Issue 19's counters (absent from older checkouts, which this script also times).
+        uncertain=getattr(d, "uncertain", None),
+        rescued=getattr(d, "rescued", None),
+        thin=getattr(d, "thin", None),
     )
     if device.is_cuda:
         first = capture(device, lambda: lamp.update(pos, rad, in_frame=True))
@@ -112,6 +117,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="small scenes (a CPU smoke run)")
     ap.add_argument("--repeats", type=int, default=None, help="timed repeats (default 50 on CUDA, 5 on the CPU)")
     ap.add_argument("--rho-diameters", type=float, nargs="*", default=[0.5], help="rho in mean diameters")
+    ap.add_argument("--only", nargs="*", default=None, help="scenes to run: specimen, lattice, slot (default all)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     wp.config.log_level = wp.LOG_WARNING
@@ -119,6 +125,8 @@ def main():
     device = wp.get_device(args.device)
     rows = []
     for name, scene, cell in scenes(args.quick):
+        if args.only and name not in args.only:
+            continue
         for rho_d in args.rho_diameters:
             repeats = args.repeats or (50 if device.is_cuda else 5)
             row = bench_scene(name, scene, cell, rho_d, device, repeats)

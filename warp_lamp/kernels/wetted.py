@@ -13,7 +13,14 @@ Pipeline of one update (each step's decisions are exact, so CPU and CUDA agree b
    allowed voxel left next to a reached one (``wp.capture_while``), or ``max_rounds``.
 3. Dilation of the reached set by the probe's offset set: a pass along y builds planes
    ``Q_m`` = "some reached voxel within the table's x-reach in some row j, for |dz| = m"; a pass along z ORs them.
-4. Crossings along every x, y and z row, virtual fluid past both ends; each one goes to its nearest sphere.
+   Run twice: by rho (``fluid``, certainly wet) and by rho + the voxel diagonal (``band``, possibly wet).
+4. ``wet_expose`` flags the spheres with a reached voxel within r + rho + diagonal (only they can hold a probe
+   centre that is reachable); ``wet_classify`` decides every voxel of ``band`` that is not yet fluid by exact
+   distances (``probe_reaches``): fluid iff a reachable probe centre lies within rho of its centre.
+5. Crossings along every x, y and z row, virtual fluid past both ends; each one goes to its nearest sphere.
+6. ``wet_thin``: a sphere chord that holds no voxel centre, between two fluid samples of a row, is a dry interval
+   the samples cannot see; overlapping ones (or ones whose gap is dry) merge, and each merged interval loads an
+   entry and an exit crossing.
 """
 
 import warp as wp
@@ -30,7 +37,26 @@ DIAG_UNATTRIBUTED = wp.constant(2)
 DIAG_ROUNDS = wp.constant(3)
 DIAG_NONCONVERGED = wp.constant(4)
 DIAG_TIGHT = wp.constant(5)
-N_DIAG = 6
+DIAG_UNCERTAIN = wp.constant(6)
+DIAG_RESCUED = wp.constant(7)
+DIAG_THIN = wp.constant(8)
+DIAG_GAPS = wp.constant(9)
+N_DIAG = 10
+#: ``candidate_check``'s answer for a valid candidate.
+CANDIDATE_OK = wp.constant(-2)
+#: Spheres a point's exact test keeps in a local list (a uint64 mask marks them); with more it walks the bins.
+NEAR_LIST = 64
+NearList = wp.types.vector(length=NEAR_LIST, dtype=wp.int32)
+#: Near spheres from which the exact test prunes those whose cap another ball covers: from any number (measured on
+#: the CPU, specimen and slot block at rho = d/4 ... d: pruning always was as fast as from 8 or 12, 1.5-7x faster
+#: than never); tests raise it past NEAR_LIST to check the unpruned search.
+PRUNE_FROM = 0
+#: Inflated balls holding a point deepest that the exact test keeps as the first covers of the near spheres' caps.
+DEEP = 8
+DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
+DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
+#: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
+SLACK = wp.constant(wp.float64(1.0e-9))
 
 
 @wp.struct
@@ -45,8 +71,9 @@ class WetBox:
     bound: wp.vec3d  # nearest-sphere distance bound per lamp axis, rounding margin included [m]
     bin_n: wp.vec3i  # bins of the nearest-sphere search per axis
     bin_edge: wp.float64  # bin edge [m]
-    wy: wp.int32  # dilation half-width along y [voxels]
-    wz: wp.int32  # dilation half-width along z [voxels]
+    diag: wp.float64  # voxel diagonal sqrt(hx^2 + hy^2 + hz^2) [m]
+    near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
+    prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
@@ -194,6 +221,45 @@ def centre_offset(i: wp.int32, h: wp.float64, c: wp.float64) -> wp.float64:
     return (wp.float64(i) + wp.float64(0.5)) * h - c
 
 
+@wp.func
+def mark_run(
+    bits: wp.array[wp.uint32],
+    cx: wp.float64,
+    rr2: wp.float64,
+    dy: wp.float64,
+    dz: wp.float64,
+    j: wp.int32,
+    k: wp.int32,
+    box: WetBox,
+):
+    """Set the voxels of row (j, k) with ``(dx dx + dy dy) + dz dz < rr2``: a run found from a sqrt estimate and then
+    trimmed by that exact test, which is monotone in |dx| (every float64 step is), so the run is contiguous and
+    exact. One ``atomic_or`` per word, skipped where the bits are set already."""
+    hx = box.h[0]
+    rem = rr2 - dy * dy - dz * dz
+    half = wp.sqrt(wp.max(rem, wp.float64(0.0)))
+    xs = span_from(cx, half, hx, box.n[0])
+    i0 = xs[0]
+    i1 = xs[1]
+    while i0 <= i1:
+        dx = centre_offset(i0, hx, cx)
+        if (dx * dx + dy * dy) + dz * dz < rr2:
+            break
+        i0 += 1
+    while i1 >= i0:
+        dx = centre_offset(i1, hx, cx)
+        if (dx * dx + dy * dy) + dz * dz < rr2:
+            break
+        i1 -= 1
+    if i0 <= i1:
+        row = word_at(box, 0, j, k)
+        for w in range(i0 / 32, i1 / 32 + 1):
+            m = low_mask(i1 + 1 - 32 * w) & ~low_mask(i0 - 32 * w)
+            # Read first: inside a body most bits are set already, and a load is cheaper than an atomic.
+            if (bits[row + w] & m) != m:
+                wp.atomic_or(bits, row + w, m)
+
+
 @wp.kernel
 def wet_rasterize(
     positions: wp.array[wp.vec3],
@@ -203,6 +269,7 @@ def wet_rasterize(
     slices: wp.int32,
     # outputs
     blocked: wp.array[wp.uint32],
+    solid: wp.array[wp.uint32],
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
@@ -213,8 +280,7 @@ def wet_rasterize(
     slice also bins the sphere and counts bad particles.
 
     A voxel is blocked when ``(dx dx + dy dy) + dz dz < (r + rho)^2`` in float64, so the probe may stand where the
-    distance is exactly r + rho. Each row's run is found from a sqrt estimate and then trimmed by that exact test,
-    which is monotone in |dx| (every float64 step is), so the run is contiguous and exact.
+    distance is exactly r + rho; it is solid (inside the sphere, never fluid) when the same sum is ``< r^2``.
     """
     t = wp.tid()
     pid = t / slices
@@ -263,8 +329,7 @@ def wet_rasterize(
             wp.atomic_max(rmax, 0, r32)
 
     big2 = big * big
-    hx = box.h[0]
-    nx = box.n[0]
+    r2 = r * r
     ks = span_from(c[2], big, box.h[2], box.n[2])
     js = span_from(c[1], big, box.h[1], box.n[1])
     for k in range(ks[0] + part, ks[1] + 1, slices):
@@ -274,31 +339,9 @@ def wet_rasterize(
             # Exact skip: (dx dx + dy dy) + dz dz >= dy dy + dz dz for every dx (rounding is monotone).
             if dy * dy + dz * dz >= big2:
                 continue
-            rem = big2 - dy * dy - dz * dz
-            half = wp.sqrt(wp.max(rem, wp.float64(0.0)))
-            xs = span_from(c[0], half, hx, nx)
-            i0 = xs[0]
-            i1 = xs[1]
-            while i0 <= i1:
-                dx = centre_offset(i0, hx, c[0])
-                if (dx * dx + dy * dy) + dz * dz < big2:
-                    break
-                i0 += 1
-            while i1 >= i0:
-                dx = centre_offset(i1, hx, c[0])
-                if (dx * dx + dy * dy) + dz * dz < big2:
-                    break
-                i1 -= 1
-            if i0 > i1:
-                continue
-            row = word_at(box, 0, j, k)
-            w0 = i0 / 32
-            w1 = i1 / 32
-            for w in range(w0, w1 + 1):
-                m = low_mask(i1 + 1 - 32 * w) & ~low_mask(i0 - 32 * w)
-                # Read first: inside a body most bits are set already, and a load is cheaper than an atomic.
-                if (blocked[row + w] & m) != m:
-                    wp.atomic_or(blocked, row + w, m)
+            mark_run(blocked, c[0], big2, dy, dz, j, k, box)
+            if dy * dy + dz * dz < r2:
+                mark_run(solid, c[0], r2, dy, dz, j, k, box)
 
 
 # --- connectivity -----------------------------------------------------------------------------------------
@@ -533,6 +576,8 @@ def wet_round_end(
 @wp.kernel
 def wet_dilate_y(
     box: WetBox,
+    wy: wp.int32,
+    wz: wp.int32,
     reach: wp.array[wp.uint32],
     table: wp.array[wp.int32],
     # outputs
@@ -540,8 +585,8 @@ def wet_dilate_y(
 ):
     """One thread per word: plane m gets the voxels with a reached voxel at some (dx, dy, m) of the offset set.
 
-    ``table[|dy| (wz + 1) + m]`` is the largest |dx| with (dx, dy, m) in the set, or -1; it does not grow with
-    m, so walking m downward only ever widens the x reach of a row.
+    ``table[|dy| (wz + 1) + m]`` (|dy| <= wy, m <= wz) is the largest |dx| with (dx, dy, m) in the set, or -1; it
+    does not grow with m, so walking m downward only ever widens the x reach of a row.
     """
     idx = wp.tid()
     wjk = word_coords(box, idx)
@@ -549,10 +594,9 @@ def wet_dilate_y(
     j = wjk[1]
     k = wjk[2]
     nw = box.n_words
-    wz = box.wz
     for m in range(wz + 1):
         planes[m * nw + idx] = wp.uint32(0)
-    for jj in range(-box.wy, box.wy + 1):
+    for jj in range(-wy, wy + 1):
         row_j = j + jj
         aj = wp.abs(jj)
         if row_j < 0 or row_j >= box.n[1]:
@@ -577,18 +621,19 @@ def wet_dilate_y(
 @wp.kernel
 def wet_dilate_z(
     box: WetBox,
+    wz: wp.int32,
     planes: wp.array[wp.uint32],
     # outputs
     fluid: wp.array[wp.uint32],
 ):
-    """One thread per word: fluid = OR over |dz| <= wz of plane |dz| at z + dz (outside the box: fluid)."""
+    """One thread per word: the dilated set = OR over |dz| <= wz of plane |dz| at z + dz (outside the box: set)."""
     idx = wp.tid()
     wjk = word_coords(box, idx)
     w = wjk[0]
     j = wjk[1]
     k = wjk[2]
     acc = wp.uint32(0)
-    for kk in range(-box.wz, box.wz + 1):
+    for kk in range(-wz, wz + 1):
         kz = k + kk
         if kz < 0 or kz >= box.n[2]:
             acc = ONES
@@ -825,3 +870,994 @@ def wet_cross(
             diag,
             owners,
         )
+
+
+# --- exact classification of the uncertain band -------------------------------------------------------------
+#
+# A point x is fluid when a reachable probe centre z (allowed: |z - c_q| >= r_q + rho for every sphere) lies
+# within rho of it. The nearest allowed point to x is a critical point of the union of inflated balls: a face
+# point (x projected radially onto an inflated sphere), an edge point (the nearest point to x on the circle where
+# two inflated spheres meet) or a vertex (where three meet), or x itself. Those are the candidates; a candidate
+# counts when it is within rho of x, outside every other inflated ball, and reachable: a reached corner of the
+# voxel-centre cube holding it joins it by a straight segment that stays allowed. Every expression below is
+# float64 arithmetic and sqrt on float32 inputs, in the order the reference evaluates it.
+
+
+@wp.struct
+class BinSpan:
+    lo: wp.vec3i
+    hi: wp.vec3i
+
+
+@wp.struct
+class Chord:
+    """A sphere's thin chord on a row: ``ok`` 0 when there is none; ``m0`` the sample before it (the chord lies
+    between voxel centres m0 and m0 + 1 along the row); ``lo``/``hi`` its ends along the row's axis [m]."""
+
+    ok: wp.int32
+    m0: wp.int32
+    lo: wp.float64
+    hi: wp.float64
+
+
+@wp.func
+def dot3(a: wp.vec3d, b: wp.vec3d) -> wp.float64:
+    return (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
+
+
+@wp.func
+def cross3(a: wp.vec3d, b: wp.vec3d) -> wp.vec3d:
+    return wp.vec3d(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@wp.func
+def centre_of(i: wp.int32, positions: wp.array[wp.vec3]) -> wp.vec3d:
+    p = positions[i]
+    return wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
+
+
+@wp.func
+def bin_span(p: wp.vec3d, reach: wp.float64, box: WetBox) -> BinSpan:
+    """The bins that the cube p +- reach touches (clamped: far spheres sit in the edge bins)."""
+    out = BinSpan()
+    for a in range(3):
+        top = wp.float64(box.bin_n[a] - 1)
+        out.lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
+        out.hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
+    return out
+
+
+@wp.func
+def bin_head(bx: wp.int32, by: wp.int32, bz: wp.int32, box: WetBox, heads: wp.array[wp.int32]) -> wp.int32:
+    return heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]
+
+
+@wp.func
+def same_sphere(q: wp.int32, s: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32]) -> wp.bool:
+    """q is s, or a copy of it (same float32 centre and radius): a candidate on s is on q too."""
+    if s < 0:
+        return False
+    if q == s:
+        return True
+    a = positions[q]
+    b = positions[s]
+    return a[0] == b[0] and a[1] == b[1] and a[2] == b[2] and radii[q] == radii[s]
+
+
+@wp.func
+def defining(
+    q: wp.int32, i: wp.int32, j: wp.int32, k: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32]
+) -> wp.bool:
+    return (
+        same_sphere(q, i, positions, radii)
+        or same_sphere(q, j, positions, radii)
+        or same_sphere(q, k, positions, radii)
+    )
+
+
+@wp.func
+def reached_at(ix: wp.int32, iy: wp.int32, iz: wp.int32, reach: wp.array[wp.uint32], box: WetBox) -> wp.bool:
+    """Voxel (ix, iy, iz) reached; every lattice point beyond the box is."""
+    if ix < 0 or iy < 0 or iz < 0 or ix >= box.n[0] or iy >= box.n[1] or iz >= box.n[2]:
+        return True
+    word = reach[word_at(box, ix / 32, iy, iz)]
+    return ((word >> wp.uint32(ix % 32)) & wp.uint32(1)) != wp.uint32(0)
+
+
+@wp.func
+def tangent_ok(y: wp.vec3d, z: wp.vec3d, s: wp.int32, positions: wp.array[wp.vec3]) -> wp.bool:
+    """The segment from z (on inflated sphere s) toward y leaves s's ball outward or along its tangent plane."""
+    if s < 0:
+        return True
+    return dot3(y - z, z - centre_of(s, positions)) >= wp.float64(0.0)
+
+
+@wp.func
+def inside_inflated(
+    z: wp.vec3d, q: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
+) -> wp.bool:
+    big = wp.float64(radii[q]) + box.rho
+    v = z - centre_of(q, positions)
+    return dot3(v, v) < big * big
+
+
+@wp.func
+def blocked_point(
+    x: wp.vec3d,
+    z: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    k: wp.int32,
+    reach: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.int32:
+    """A sphere other than the candidate's own (i, j, k and their copies) that has z strictly inside its inflated
+    ball (the rasterizer's allowed test, ``|z - c|^2 < (r + rho)^2``), or -1. Searched around x, which is within
+    rho of z: every ball holding z has its centre within r_max + 2 rho of x."""
+    span = bin_span(x, reach, box)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    if not defining(q, i, j, k, positions, radii):
+                        if inside_inflated(z, q, positions, radii, box):
+                            return q
+                    q = next_in_bin[q]
+    return -1
+
+
+@wp.func
+def segment_blocked(
+    x: wp.vec3d,
+    y: wp.vec3d,
+    z: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    k: wp.int32,
+    reach: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.bool:
+    """The segment y-z passes strictly inside the inflated ball of a sphere other than the candidate's own (those
+    are checked by ``tangent_ok``): its nearest point to the centre, at the clamped parameter t, is closer than
+    r + rho. Searched around x: the segment is within rho + diagonal of x."""
+    d = z - y
+    dd = dot3(d, d)
+    span = bin_span(x, reach, box)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    if not defining(q, i, j, k, positions, radii):
+                        big = wp.float64(radii[q]) + box.rho
+                        w = y - centre_of(q, positions)
+                        t = wp.float64(0.0)
+                        if dd > wp.float64(0.0):
+                            t = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
+                        p = w + d * t
+                        if dot3(p, p) < big * big:
+                            return True
+                    q = next_in_bin[q]
+    return False
+
+
+@wp.func
+def candidate_check(
+    x: wp.vec3d,
+    z: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    k: wp.int32,
+    hint: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+) -> wp.int32:
+    """Probe centre z, on inflated spheres i, j, k (-1: none), within rho of x: ``CANDIDATE_OK`` when it is allowed
+    and reachable; else the sphere that blocks it (>= 0, tried first as the next call's ``hint``: neighbouring
+    candidates are mostly blocked by the same sphere; the answer does not depend on it), or -1."""
+    if hint >= 0:
+        if not defining(hint, i, j, k, positions, radii):
+            if inside_inflated(z, hint, positions, radii, box):
+                return hint
+    near = (rmax + wp.float64(2.0) * box.rho) * (wp.float64(1.0) + SLACK)
+    blocker = blocked_point(x, z, i, j, k, near, positions, radii, heads, next_in_bin, box)
+    if blocker >= 0:
+        return blocker
+    far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
+    lo = wp.vec3i(0)
+    for a in range(3):
+        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        lo[a] = wp.int32(f)
+    for corner in range(8):
+        ix = lo[0] + (corner & 1)
+        iy = lo[1] + ((corner >> 1) & 1)
+        iz = lo[2] + ((corner >> 2) & 1)
+        if reached_at(ix, iy, iz, reach, box):
+            y = wp.vec3d(
+                (wp.float64(ix) + wp.float64(0.5)) * box.h[0],
+                (wp.float64(iy) + wp.float64(0.5)) * box.h[1],
+                (wp.float64(iz) + wp.float64(0.5)) * box.h[2],
+            )
+            if tangent_ok(y, z, i, positions) and tangent_ok(y, z, j, positions) and tangent_ok(y, z, k, positions):
+                if not segment_blocked(x, y, z, i, j, k, far, positions, radii, heads, next_in_bin, box):
+                    return CANDIDATE_OK
+    return -1
+
+
+@wp.func
+def gate_ok(
+    x: wp.vec3d, q: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
+) -> wp.bool:
+    """Inflated sphere q passes within rho of x (with slack): only then can it carry an edge or vertex candidate."""
+    v = x - centre_of(q, positions)
+    g = (wp.float64(radii[q]) + wp.float64(2.0) * box.rho) * (wp.float64(1.0) + SLACK)
+    return dot3(v, v) <= g * g
+
+
+@wp.func
+def circle_point(x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64) -> wp.vec4d:
+    """The point nearest to x on the circle where the inflated spheres (ci, big_i) and (cj, big_j) meet, and 1 in
+    the last component; 0 there when they do not meet in a circle. On the circle's axis every point is as near:
+    the one toward the coordinate axis along which the centres differ least."""
+    e = cj - ci
+    l2 = dot3(e, e)
+    out = wp.vec4d(0.0)
+    if l2 == wp.float64(0.0):
+        return out
+    bi2 = big_i * big_i
+    frac = ((bi2 - big_j * big_j) + l2) / (wp.float64(2.0) * l2)
+    rc2 = bi2 - (frac * frac) * l2
+    if rc2 <= wp.float64(0.0):
+        return out
+    m = ci + e * frac
+    q = x - m
+    qp = q - e * (dot3(q, e) / l2)
+    qp2 = dot3(qp, qp)
+    if qp2 == wp.float64(0.0):
+        b = int(0)
+        if wp.abs(e[1]) < wp.abs(e[b]):
+            b = 1
+        if wp.abs(e[2]) < wp.abs(e[b]):
+            b = 2
+        unit = wp.vec3d(0.0)
+        unit[b] = wp.float64(1.0)
+        qp = cross3(e, unit)
+        qp2 = dot3(qp, qp)
+    z = m + qp * wp.sqrt(rc2 / qp2)
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
+def vertex_points(
+    ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, ck: wp.vec3d, big_k: wp.float64
+) -> wp.mat33d:
+    """The two points where three inflated spheres meet, as rows 0 and 1, and (1, 0, 0) in row 2; row 2 is 0 when
+    they do not meet in two points (or their centres are collinear)."""
+    out = wp.mat33d(0.0)
+    e1 = cj - ci
+    e2 = ck - ci
+    a11 = dot3(e1, e1)
+    a12 = dot3(e1, e2)
+    a22 = dot3(e2, e2)
+    det = a11 * a22 - a12 * a12
+    if det <= wp.float64(0.0):
+        return out
+    bi2 = big_i * big_i
+    b1 = ((bi2 - big_j * big_j) + a11) * wp.float64(0.5)
+    b2 = ((bi2 - big_k * big_k) + a22) * wp.float64(0.5)
+    al = (b1 * a22 - b2 * a12) / det
+    be = (b2 * a11 - b1 * a12) / det
+    w0 = e1 * al + e2 * be
+    nrm = cross3(e1, e2)
+    nn = dot3(nrm, nrm)
+    if nn <= wp.float64(0.0):
+        return out
+    g2 = (bi2 - dot3(w0, w0)) / nn
+    if g2 < wp.float64(0.0):
+        return out
+    g = wp.sqrt(g2)
+    base = ci + w0
+    z1 = base + nrm * g
+    z2 = base - nrm * g
+    return wp.mat33d(z1[0], z1[1], z1[2], z2[0], z2[1], z2[2], wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))
+
+
+@wp.func
+def vertex_walk(
+    x: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    ci: wp.vec3d,
+    big_i: wp.float64,
+    cj: wp.vec3d,
+    big_j: wp.float64,
+    span: BinSpan,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+) -> wp.bool:
+    """A valid candidate among the triple points of inflated spheres i < j < k, k exposed and near x (bin walk)."""
+    rho2 = box.rho * box.rho
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                k = bin_head(bx, by, bz, box, heads)
+                while k >= 0:
+                    if k > j and exposed[k] != 0 and gate_ok(x, k, positions, radii, box):
+                        ck = centre_of(k, positions)
+                        vp = vertex_points(ci, big_i, cj, big_j, ck, wp.float64(radii[k]) + box.rho)
+                        if vp[2, 0] != wp.float64(0.0):
+                            for s in range(2):
+                                z = wp.vec3d(vp[s, 0], vp[s, 1], vp[s, 2])
+                                w = x - z
+                                if dot3(w, w) <= rho2:
+                                    res = candidate_check(
+                                        x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box
+                                    )
+                                    if res == CANDIDATE_OK:
+                                        return True
+                    k = next_in_bin[k]
+    return False
+
+
+@wp.func
+def cap_covered(
+    x: wp.vec3d, i: wp.int32, j: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
+) -> wp.bool:
+    """Every point of inflated sphere i within rho of x lies inside inflated ball j, with a relative margin of
+    1e-6 in squared distance: then every candidate on sphere i (face, edge or vertex) is blocked by j, and the
+    search may drop i (pruning: the answer is the same; the margin covers the rounding of the candidates). The cap
+    is the set of points of sphere i at angle <= alpha from x's direction, ``cos alpha = (R_i^2 + d^2 - rho^2) /
+    (2 R_i d)``; its farthest point from c_j is at angle gamma + alpha from c_j's direction (the antipode when that
+    passes pi)."""
+    if same_sphere(j, i, positions, radii):
+        return False
+    rho = box.rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    big_j = wp.float64(radii[j]) + rho
+    v = x - ci
+    d2 = dot3(v, v)
+    e = centre_of(j, positions) - ci
+    l2 = dot3(e, e)
+    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
+        return False
+    d = wp.sqrt(d2)
+    el = wp.sqrt(l2)
+    ca = (big_i * big_i + d2 - rho * rho) / (wp.float64(2.0) * big_i * d)
+    if ca >= wp.float64(1.0):
+        return False
+    far2 = (big_i + el) * (big_i + el)
+    if ca > wp.float64(-1.0):
+        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
+        if cg + ca >= wp.float64(0.0):
+            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
+            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
+            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
+    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
+def covered_by_deep(
+    x: wp.vec3d,
+    i: wp.int32,
+    top: DeepIds,
+    ntop: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+) -> wp.bool:
+    """Sphere i's cap within rho of x lies inside one of the ``ntop`` inflated balls ``top``."""
+    for t in range(ntop):
+        if cap_covered(x, i, top[t], positions, radii, box):
+            return True
+    return False
+
+
+@wp.func
+def probe_walk(
+    x: wp.vec3d,
+    span: BinSpan,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+) -> wp.bool:
+    """``probe_reaches``'s search over faces, edges and vertices by walking the bins (for more near spheres than
+    the local list holds): the same candidates, pairs and triples in increasing index order."""
+    rho = box.rho
+    rho2 = rho * rho
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
+                while i >= 0:
+                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                        c = centre_of(i, positions)
+                        v = x - c
+                        d2 = dot3(v, v)
+                        if d2 > wp.float64(0.0):
+                            z = c + v * ((wp.float64(radii[i]) + rho) / wp.sqrt(d2))
+                            w = x - z
+                            if dot3(w, w) <= rho2:
+                                res = candidate_check(
+                                    x, z, i, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box
+                                )
+                                if res == CANDIDATE_OK:
+                                    return True
+                    i = next_in_bin[i]
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
+                while i >= 0:
+                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                        ci = centre_of(i, positions)
+                        big_i = wp.float64(radii[i]) + rho
+                        for bz2 in range(span.lo[2], span.hi[2] + 1):
+                            for by2 in range(span.lo[1], span.hi[1] + 1):
+                                for bx2 in range(span.lo[0], span.hi[0] + 1):
+                                    j = bin_head(bx2, by2, bz2, box, heads)
+                                    while j >= 0:
+                                        if j > i and exposed[j] != 0 and gate_ok(x, j, positions, radii, box):
+                                            cj = centre_of(j, positions)
+                                            big_j = wp.float64(radii[j]) + rho
+                                            cp = circle_point(x, ci, big_i, cj, big_j)
+                                            if cp[3] != wp.float64(0.0):
+                                                z = wp.vec3d(cp[0], cp[1], cp[2])
+                                                w = x - z
+                                                e2 = dot3(w, w)
+                                                if e2 <= rho2:
+                                                    res = candidate_check(
+                                                        x,
+                                                        z,
+                                                        i,
+                                                        j,
+                                                        -1,
+                                                        -1,
+                                                        rmax,
+                                                        positions,
+                                                        radii,
+                                                        heads,
+                                                        next_in_bin,
+                                                        reach,
+                                                        box,
+                                                    )
+                                                    if res == CANDIDATE_OK:
+                                                        return True
+                                                if e2 <= rho2 * (wp.float64(1.0) + SLACK):
+                                                    if vertex_walk(
+                                                        x,
+                                                        i,
+                                                        j,
+                                                        ci,
+                                                        big_i,
+                                                        cj,
+                                                        big_j,
+                                                        span,
+                                                        rmax,
+                                                        positions,
+                                                        radii,
+                                                        heads,
+                                                        next_in_bin,
+                                                        exposed,
+                                                        reach,
+                                                        box,
+                                                    ):
+                                                        return True
+                                        j = next_in_bin[j]
+                    i = next_in_bin[i]
+    return False
+
+
+@wp.func
+def probe_reaches(
+    x: wp.vec3d,
+    lattice: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+) -> wp.bool:
+    """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
+    allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
+    ``lattice`` 0: a voxel centre's own reach is the connectivity's), the radial projections of x onto the
+    inflated spheres, the points nearest to x on their pairwise circles, and their triple points (pairs and triples
+    in increasing index order, triples only on circles that pass within rho). Only exposed spheres
+    (``wet_expose``) within r + 2 rho of x can carry a reachable candidate within rho. For a voxel centre the caller
+    has checked the solid map (``|x - c|^2 < r^2``); for another point it is checked here."""
+    rho = box.rho
+    rho2 = rho * rho
+    if lattice == 0:
+        span = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
+        for bz in range(span.lo[2], span.hi[2] + 1):
+            for by in range(span.lo[1], span.hi[1] + 1):
+                for bx in range(span.lo[0], span.hi[0] + 1):
+                    q = bin_head(bx, by, bz, box, heads)
+                    while q >= 0:
+                        r = wp.float64(radii[q])
+                        v = x - centre_of(q, positions)
+                        if dot3(v, v) < r * r:
+                            return False
+                        q = next_in_bin[q]
+        if (
+            candidate_check(x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box)
+            == CANDIDATE_OK
+        ):
+            return True
+    near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
+    span = bin_span(x, near, box)
+    # The exposed spheres near x, less those whose cap within rho of x another sphere's inflated ball covers:
+    # first the DEEP balls that hold x deepest (they cover most), then the listed ones. With more near than the
+    # list holds (``box.near_list``), a second walk keeps only those the deep balls leave; with more of those, the
+    # bin-walk search (the same answer, slower).
+    limit = box.near_list
+    ids = NearList()
+    cnt = int(0)
+    top = DeepIds()
+    depth = DeepDepths()
+    ntop = int(0)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
+                while i >= 0:
+                    big = wp.float64(radii[i]) + rho
+                    v = x - centre_of(i, positions)
+                    d2 = dot3(v, v)
+                    if d2 < big * big:
+                        dep = big - wp.sqrt(d2)
+                        if ntop < DEEP or dep > depth[DEEP - 1]:
+                            slot = wp.min(ntop, DEEP - 1)
+                            if ntop < DEEP:
+                                ntop += 1
+                            while slot > 0 and depth[slot - 1] < dep:
+                                depth[slot] = depth[slot - 1]
+                                top[slot] = top[slot - 1]
+                                slot -= 1
+                            depth[slot] = dep
+                            top[slot] = i
+                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                        if cnt < limit:
+                            ids[cnt] = i
+                        cnt += 1
+                    i = next_in_bin[i]
+    if cnt > limit:
+        cnt = int(0)
+        for bz in range(span.lo[2], span.hi[2] + 1):
+            for by in range(span.lo[1], span.hi[1] + 1):
+                for bx in range(span.lo[0], span.hi[0] + 1):
+                    i = bin_head(bx, by, bz, box, heads)
+                    while i >= 0:
+                        if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                            if not covered_by_deep(x, i, top, ntop, positions, radii, box):
+                                if cnt < limit:
+                                    ids[cnt] = i
+                                cnt += 1
+                        i = next_in_bin[i]
+        if cnt > limit:
+            return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
+    kept = wp.uint64(0)
+    for a in range(cnt):
+        covered = int(0)
+        if cnt < box.prune_from:
+            covered = -1
+        elif covered_by_deep(x, ids[a], top, ntop, positions, radii, box):
+            covered = 1
+        b = int(0)
+        while b < cnt and covered == 0:
+            if b != a and cap_covered(x, ids[a], ids[b], positions, radii, box):
+                covered = 1
+            b += 1
+        if covered <= 0:
+            kept = kept | (wp.uint64(1) << wp.uint64(a))
+    m = int(0)
+    for a in range(cnt):
+        if ((kept >> wp.uint64(a)) & wp.uint64(1)) != wp.uint64(0):
+            ids[m] = ids[a]
+            m += 1
+    cnt = m
+    # Increasing index order (insertion sort), so that pairs and triples come as the bin walk takes them.
+    for a in range(1, cnt):
+        key = ids[a]
+        b = a - 1
+        while b >= 0 and ids[b] > key:
+            ids[b + 1] = ids[b]
+            b -= 1
+        ids[b + 1] = key
+    hint = int(-1)
+    # Faces: the commonest answer, so first.
+    for a in range(cnt):
+        i = ids[a]
+        c = centre_of(i, positions)
+        v = x - c
+        d2 = dot3(v, v)
+        if d2 > wp.float64(0.0):
+            z = c + v * ((wp.float64(radii[i]) + rho) / wp.sqrt(d2))
+            w = x - z
+            if dot3(w, w) <= rho2:
+                res = candidate_check(x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box)
+                if res == CANDIDATE_OK:
+                    return True
+                if res >= 0:
+                    hint = res
+    # Edges, and the vertices on every circle that passes within rho of x.
+    for a in range(cnt):
+        i = ids[a]
+        ci = centre_of(i, positions)
+        big_i = wp.float64(radii[i]) + rho
+        for b in range(a + 1, cnt):
+            j = ids[b]
+            cj = centre_of(j, positions)
+            big_j = wp.float64(radii[j]) + rho
+            cp = circle_point(x, ci, big_i, cj, big_j)
+            if cp[3] != wp.float64(0.0):
+                z = wp.vec3d(cp[0], cp[1], cp[2])
+                w = x - z
+                e2 = dot3(w, w)
+                if e2 <= rho2:
+                    res = candidate_check(x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box)
+                    if res == CANDIDATE_OK:
+                        return True
+                    if res >= 0:
+                        hint = res
+                if e2 <= rho2 * (wp.float64(1.0) + SLACK):
+                    for e in range(b + 1, cnt):
+                        k = ids[e]
+                        vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
+                        if vp[2, 0] != wp.float64(0.0):
+                            for t in range(2):
+                                z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                                w = x - z
+                                if dot3(w, w) <= rho2:
+                                    res = candidate_check(
+                                        x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box
+                                    )
+                                    if res == CANDIDATE_OK:
+                                        return True
+                                    if res >= 0:
+                                        hint = res
+    return False
+
+
+@wp.kernel
+def wet_expose(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    box: WetBox,
+    reach: wp.array[wp.uint32],
+    # outputs
+    exposed: wp.array[wp.int32],
+):
+    """One thread per sphere: 1 when a reached voxel (or the outside) lies within (r + rho + diagonal)(1 + slack)
+    of its centre. A reachable candidate on the sphere's inflated surface has a reached cube corner within one
+    diagonal, so a sphere that is not exposed carries none (a necessary condition: pruning, not a decision)."""
+    pid = wp.tid()
+    exposed[pid] = 0
+    if active.shape[0] > 0:
+        if active[pid] == 0:
+            return
+    p = positions[pid]
+    r32 = radii[pid]
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r32) and r32 > 0.0):
+        return
+    c = wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
+    rd = (wp.float64(r32) + box.rho + box.diag) * (wp.float64(1.0) + SLACK)
+    for a in range(3):
+        if c[a] - rd <= wp.float64(0.0) or c[a] + rd >= wp.float64(box.n[a]) * box.h[a]:
+            exposed[pid] = 1
+            return
+    rd2 = rd * rd
+    ks = span_from(c[2], rd, box.h[2], box.n[2])
+    js = span_from(c[1], rd, box.h[1], box.n[1])
+    for k in range(ks[0], ks[1] + 1):
+        dz = centre_offset(k, box.h[2], c[2])
+        for j in range(js[0], js[1] + 1):
+            dy = centre_offset(j, box.h[1], c[1])
+            t2 = dy * dy + dz * dz
+            if t2 > rd2:
+                continue
+            xs = span_from(c[0], wp.sqrt(rd2 - t2), box.h[0], box.n[0])
+            if xs[0] > xs[1]:
+                continue
+            row = word_at(box, 0, j, k)
+            for w in range(xs[0] / 32, xs[1] / 32 + 1):
+                m = low_mask(xs[1] + 1 - 32 * w) & ~low_mask(xs[0] - 32 * w)
+                if (reach[row + w] & m) != wp.uint32(0):
+                    exposed[pid] = 1
+                    return
+
+
+@wp.kernel
+def wet_classify(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    reach: wp.array[wp.uint32],
+    band: wp.array[wp.uint32],
+    solid: wp.array[wp.uint32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    bits: wp.int32,
+    # outputs
+    fluid: wp.array[wp.uint32],
+    diag: wp.array[wp.int32],
+):
+    """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA, where one test's latency is long):
+    every voxel of the band (within rho + diagonal of a reached voxel) that the dilation by rho left dry and that
+    is not solid gets the exact test. A thread reads and sets only its own bits of ``fluid``."""
+    t = wp.tid()
+    splits = 32 / bits
+    idx = t / splits
+    sub = t - idx * splits
+    wjk = word_coords(box, idx)
+    w = wjk[0]
+    own = low_mask(bits) << wp.uint32(sub * bits)
+    unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, w) & own
+    if unc == wp.uint32(0):
+        return
+    r_max = wp.float64(rmax[0])
+    add = wp.uint32(0)
+    tested = int(0)
+    wet = int(0)
+    while unc != wp.uint32(0):
+        b = lowest_bit(unc)
+        unc = unc & (unc - wp.uint32(1))
+        x = wp.vec3d(
+            (wp.float64(32 * w + b) + wp.float64(0.5)) * box.h[0],
+            (wp.float64(wjk[1]) + wp.float64(0.5)) * box.h[1],
+            (wp.float64(wjk[2]) + wp.float64(0.5)) * box.h[2],
+        )
+        tested += 1
+        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+            add = add | (wp.uint32(1) << wp.uint32(b))
+            wet += 1
+    if add != wp.uint32(0):
+        if bits == 32:
+            fluid[idx] = fluid[idx] | add
+        else:
+            wp.atomic_or(fluid, idx, add)
+    wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
+    wp.atomic_add(diag, DIAG_RESCUED, wet)
+
+
+# --- thin chords ----------------------------------------------------------------------------------------------
+
+
+@wp.func
+def thin_chord(
+    q: wp.int32,
+    a: wp.int32,
+    iu: wp.int32,
+    iv: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+) -> Chord:
+    """Sphere q's chord on the row (iu, iv) along axis a when it holds no voxel centre. The row meets the open
+    ball when the voxel test with the a-term zero holds, ``t^2 < r^2``; the chord then lies between samples m0 and
+    m0 + 1 (``m0 = floor(c_a / h_a - 1/2)``, -1 <= m0 <= n_a - 1) when none of the centres m0 - 1 ... m0 + 2 is
+    inside by the voxel test (the two beyond guard against rounding in m0)."""
+    out = Chord()
+    out.ok = 0
+    c = centre_of(q, positions)
+    r = wp.float64(radii[q])
+    r2 = r * r
+    u = (a + 1) % 3
+    v = (a + 2) % 3
+    d = wp.vec3d(0.0)
+    d[u] = centre_offset(iu, box.h[u], c[u])
+    d[v] = centre_offset(iv, box.h[v], c[v])
+    t2 = dot3(d, d)
+    # A chord of half-length h_a or more holds the nearest centre well inside (by 3/4 h_a^2): never thin.
+    if not (t2 < r2) or r2 - t2 >= box.h[a] * box.h[a]:
+        return out
+    f = c[a] / box.h[a] - wp.float64(0.5)
+    if not (f >= wp.float64(-1.0) and f < wp.float64(box.n[a])):
+        return out
+    m0 = wp.int32(wp.floor(f))
+    for m in range(m0 - 1, m0 + 3):
+        d[a] = centre_offset(m, box.h[a], c[a])
+        if dot3(d, d) < r2:
+            return out
+    half = wp.sqrt(r2 - t2)
+    out.ok = 1
+    out.m0 = m0
+    out.lo = c[a] - half
+    out.hi = c[a] + half
+    return out
+
+
+@wp.func
+def fluid_sample(
+    a: wp.int32, m: wp.int32, iu: wp.int32, iv: wp.int32, fluid: wp.array[wp.uint32], box: WetBox
+) -> wp.bool:
+    """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are."""
+    if m < 0 or m >= box.n[a]:
+        return True
+    ijk = wp.vec3i(0)
+    ijk[a] = m
+    ijk[(a + 1) % 3] = iu
+    ijk[(a + 2) % 3] = iv
+    word = fluid[word_at(box, ijk[0] / 32, ijk[1], ijk[2])]
+    return ((word >> wp.uint32(ijk[0] % 32)) & wp.uint32(1)) != wp.uint32(0)
+
+
+@wp.func
+def row_point(a: wp.int32, t: wp.float64, iu: wp.int32, iv: wp.int32, box: WetBox) -> wp.vec3d:
+    """The point at coordinate t along axis a on the row (iu, iv)."""
+    p = wp.vec3d(0.0)
+    p[a] = t
+    u = (a + 1) % 3
+    v = (a + 2) % 3
+    p[u] = (wp.float64(iu) + wp.float64(0.5)) * box.h[u]
+    p[v] = (wp.float64(iv) + wp.float64(0.5)) * box.h[v]
+    return p
+
+
+@wp.func
+def chord_before(lo_q: wp.float64, q: wp.int32, lo_s: wp.float64, s: wp.int32) -> wp.bool:
+    """Chord order along the row: by start, ties to the lower index."""
+    return lo_q < lo_s or (lo_q == lo_s and q < s)
+
+
+@wp.kernel
+def wet_thin(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    box: WetBox,
+    fluid: wp.array[wp.uint32],
+    reach: wp.array[wp.uint32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    # outputs
+    counts: wp.array[wp.int64],
+    hits: wp.array[wp.int32],
+    rays: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+    thin_faces: wp.array[wp.int32],
+):
+    """One thread per (sphere, axis): the sphere's thin chords on the rows of that axis whose samples on both sides
+    are fluid. The thin chords between the same two samples, ordered by start, merge where they overlap or touch
+    or where the gap between them is dry (``probe_reaches`` at its midpoint); the thread of the first chord of each
+    merged interval loads its entry (the low lamp's +1, to that sphere) and its exit (the high lamp's -1, to the
+    sphere whose chord reaches furthest, ties to the lower index). Integer counts: the order is immaterial."""
+    t = wp.tid()
+    s = t / 3
+    a = t - 3 * s
+    if active.shape[0] > 0:
+        if active[s] == 0:
+            return
+    p = positions[s]
+    r32 = radii[s]
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r32) and r32 > 0.0):
+        return
+    c = centre_of(s, positions)
+    r = wp.float64(r32)
+    u = (a + 1) % 3
+    v = (a + 2) % 3
+    r_max = wp.float64(rmax[0])
+    us = span_from(c[u], r, box.h[u], box.n[u])
+    vs = span_from(c[v], r, box.h[v], box.n[v])
+    r2 = r * r
+    ha2 = box.h[a] * box.h[a]
+    for iv in range(vs[0], vs[1] + 1):
+        dv = centre_offset(iv, box.h[v], c[v])
+        for iu in range(us[0], us[1] + 1):
+            du = centre_offset(iu, box.h[u], c[u])
+            # thin_chord's first test, cheaply (two terms add in either order, exactly): most rows end here.
+            t2 = du * du + dv * dv
+            if not (t2 < r2) or r2 - t2 >= ha2:
+                continue
+            me = thin_chord(s, a, iu, iv, positions, radii, box)
+            if me.ok == 0:
+                continue
+            m0 = me.m0
+            if not (fluid_sample(a, m0, iu, iv, fluid, box) and fluid_sample(a, m0 + 1, iu, iv, fluid, box)):
+                continue
+            # Every thin chord between these samples has its centre within r_max + h_a of the face point.
+            g0 = row_point(a, wp.float64(m0 + 1) * box.h[a], iu, iv, box)
+            span = bin_span(g0, (r_max + box.h[a]) * (wp.float64(1.0) + SLACK), box)
+            # Where do the chords before this one end?
+            has_before = int(0)
+            top = wp.float64(0.0)
+            for bz in range(span.lo[2], span.hi[2] + 1):
+                for by in range(span.lo[1], span.hi[1] + 1):
+                    for bx in range(span.lo[0], span.hi[0] + 1):
+                        q = bin_head(bx, by, bz, box, heads)
+                        while q >= 0:
+                            if q != s:
+                                ch = thin_chord(q, a, iu, iv, positions, radii, box)
+                                if ch.ok != 0 and ch.m0 == m0 and chord_before(ch.lo, q, me.lo, s):
+                                    if has_before == 0 or ch.hi > top:
+                                        top = ch.hi
+                                    has_before = 1
+                            q = next_in_bin[q]
+            if has_before != 0:
+                if top >= me.lo:
+                    continue
+                wp.atomic_add(diag, DIAG_GAPS, 1)
+                gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
+                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+                    continue
+            # This chord starts a merged interval: walk the chords after it in order while they join it.
+            cur = me.hi
+            end = s
+            last_lo = me.lo
+            last = s
+            more = int(1)
+            while more != 0:
+                nxt = int(-1)
+                nxt_lo = wp.float64(0.0)
+                nxt_hi = wp.float64(0.0)
+                for bz in range(span.lo[2], span.hi[2] + 1):
+                    for by in range(span.lo[1], span.hi[1] + 1):
+                        for bx in range(span.lo[0], span.hi[0] + 1):
+                            q = bin_head(bx, by, bz, box, heads)
+                            while q >= 0:
+                                ch = thin_chord(q, a, iu, iv, positions, radii, box)
+                                if ch.ok != 0 and ch.m0 == m0 and chord_before(last_lo, last, ch.lo, q):
+                                    if nxt < 0 or chord_before(ch.lo, q, nxt_lo, nxt):
+                                        nxt = q
+                                        nxt_lo = ch.lo
+                                        nxt_hi = ch.hi
+                                q = next_in_bin[q]
+                more = 0
+                if nxt >= 0:
+                    join = int(1)
+                    if nxt_lo > cur:
+                        wp.atomic_add(diag, DIAG_GAPS, 1)
+                        gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
+                        if probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+                            join = 0
+                    if join != 0:
+                        if nxt_hi > cur or (nxt_hi == cur and nxt < end):
+                            cur = nxt_hi
+                            end = nxt
+                        last_lo = nxt_lo
+                        last = nxt
+                        more = 1
+            ray = iu + box.n[u] * iv
+            wp.atomic_add(diag, DIAG_THIN, 1)
+            wp.atomic_add(rays, box.offset[a] + ray, 1)
+            if thin_faces.shape[0] > 0:
+                wp.atomic_add(thin_faces, box.face_offset[a] + ray * (box.n[a] + 1) + m0 + 1, 1)
+            if ((box.lamp_mask >> (2 * a)) & 1) != 0:
+                wp.atomic_add(counts, 3 * s + a, wp.int64(1))
+                wp.atomic_add(hits, s, 1)
+            if ((box.lamp_mask >> (2 * a + 1)) & 1) != 0:
+                wp.atomic_add(counts, 3 * end + a, wp.int64(-1))
+                wp.atomic_add(hits, end, 1)

@@ -1,11 +1,27 @@
 """Float64 NumPy/scipy reference of the wetted-surface mode (:mod:`warp_lamp.wetted`), voxel for voxel.
 
 Written for clarity, with scipy's independent algorithms where they exist: ``ndimage.label`` for the
-connectivity to the outside, ``ndimage.distance_transform_edt`` for the dilation by the probe, a k-d tree for
-the nearest sphere. Each decision the kernels make is the same float64 expression here, so on inputs that
-float32 holds exactly (frame coordinates and radii) the two agree bitwise. Where the kernels' float32 inputs
-could tip a decision (a voxel centre within float32 rounding of a probe shell ``r + rho``, two spheres within
-rounding of the same distance from a crossing), the reference flags it.
+connectivity to the outside, ``ndimage.distance_transform_edt`` for the dilations, k-d trees for the spheres near a
+point. It restates the mode's definition and imports nothing from the modules it checks:
+
+- **Allowed** probe centres: voxel centres x with ``|x - c_i|^2 >= (r_i + rho)^2`` for every sphere; **solid**:
+  ``|x - c_i|^2 < r_i^2`` for some sphere.
+- **Reached**: allowed voxels 6-connected to the outside of the box (everything beyond the box is).
+- **Fluid**: a voxel centre within rho of a reached voxel centre (the probe's offset table), or, when it is not
+  solid and lies within rho + one voxel diagonal of one (the *band*), when some *candidate* probe centre z is
+  valid: within rho of x, outside every other inflated ball, and reachable, i.e. a reached corner of the
+  voxel-centre cube holding z joins z by a segment that enters no inflated ball. Candidates are the critical points
+  of the union of inflated balls: radial projections of x (faces), the points of the pairwise intersection circles
+  nearest to x (edges), the triple points (vertices); for a point off the lattice also x itself.
+- **Crossings**: fluid/dry changes along every voxel row (virtual fluid beyond the box), each to its nearest sphere;
+  and **thin chords**: sphere chords that hold no voxel centre, between two fluid samples of a row, merged where
+  they overlap or where the gap between them is dry (the exact test at the gap's midpoint), each merged interval an
+  entry (to the sphere that starts it) and an exit (to the one that reaches furthest).
+
+Each decision is the same float64 expression the kernels evaluate, so on inputs that float32 holds exactly (frame
+coordinates and radii) the two agree bitwise. Where the kernels' float32 inputs could tip a decision (a voxel
+centre within float32 rounding of a probe shell ``r + rho``, two spheres within rounding of the same distance from a
+crossing), the reference flags it.
 """
 
 from __future__ import annotations
@@ -15,13 +31,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from warp_lamp.grid import LampGrid
-from warp_lamp.validate import lamp_mask
-from warp_lamp.wetted import attribution_bound, check_probe_radius, dilation_table, voxel_box
+from warp_lamp.validate import check_positive, lamp_mask
 
-__all__ = ["WettedReference", "wetted_reference"]
+__all__ = [
+    "WettedReference",
+    "attribution_bound",
+    "band_radius",
+    "dilation_table",
+    "voxel_diagonal",
+    "wetted_reference",
+]
 
 #: Unit roundoff of float32.
 EPS32 = 2.0**-24
+#: Relative slack of the pruning tests (the kernels' ``SLACK``): they drop only what exact arithmetic rules out.
+SLACK = 1e-9
 
 
 @dataclass
@@ -33,18 +57,25 @@ class WettedReference:
         h: Voxel edge per axis [m], shape (3,).
         allowed: Probe centre may stand at the voxel centre, bool (nx, ny, nz).
         allowed_ambiguous: Voxel centre within float32 input rounding of some sphere's shell r + rho.
+        solid: Voxel centre strictly inside a sphere, bool (nx, ny, nz).
         reachable: Allowed and 6-connected to the outside, bool (nx, ny, nz).
+        band: Within :func:`band_radius` of a reached voxel centre (or the outside), bool (nx, ny, nz).
         fluid: Wetted voxels, bool (nx, ny, nz).
-        dilation_near: Voxels whose distance to the reachable set is within 1e-9 of rho (decided by the offset
-            table, which the kernels share; a float32 distance test could differ here).
+        dilation_near: Voxels whose distance to the reachable set is within 1e-9 of rho or of the band radius
+            (decided by the offset tables; a float32 distance test could differ here).
         crossings: Per axis a, a dict of equal-length arrays: ``u``, ``v`` (the ray's lamp cell), ``face`` (index
             along a, 0..n_a, between voxels face-1 and face), ``enters`` (fluid to dry going +a), ``owner``
             (nearest sphere, -1 if none), ``distance`` (its |p - c| - r [m]), ``near_tie`` (a runner-up within
             float32 input rounding).
-        ray_crossings: Per axis a, fluid-to-dry crossings per ray, shape (n_u, n_v).
+        thin: Per axis a, a dict of equal-length arrays, one entry per merged thin dry interval: ``u``, ``v``,
+            ``face`` (between the samples face-1 and face), ``entry`` and ``exit`` (their spheres).
+        thin_faces: Per axis a, thin intervals per ray and face, shape (n_u, n_v, n_a + 1).
+        ray_crossings: Per axis a, fluid-to-dry crossings per ray (thin ones included), shape (n_u, n_v).
         counts: Signed per-particle per-axis counts, (N, 3) int64 (lamps that are off left out).
         hits: Crossings attributed per particle, (N,) int64 (lamps that are off left out).
-        bound: :func:`warp_lamp.wetted.attribution_bound` per axis [m].
+        bound: :func:`attribution_bound` per axis [m].
+        uncertain: Band voxels that the dilation by rho left dry and that are not solid (given the exact test).
+        rescued: Of those, the ones found fluid.
         invalid: Active particles with a non-finite position or radius, or radius <= 0.
         outside: Valid active particles whose sphere pokes out of the box.
         tight: Valid active particles whose sphere inflated by rho reaches past the first layer of virtual voxel
@@ -55,22 +86,89 @@ class WettedReference:
     h: np.ndarray
     allowed: np.ndarray
     allowed_ambiguous: np.ndarray
+    solid: np.ndarray
     reachable: np.ndarray
+    band: np.ndarray
     fluid: np.ndarray
     dilation_near: np.ndarray
     crossings: dict
+    thin: dict
+    thin_faces: dict
     ray_crossings: dict
     counts: np.ndarray
     hits: np.ndarray
     bound: np.ndarray
+    uncertain: int
+    rescued: int
     invalid: int
     outside: int
     tight: int
 
 
-def _allowed(local, r, rho, n, h):
-    """Blocked where ``(dx dx + dy dy) + dz dz < (r + rho)^2``, dx = (i + 1/2) hx - cx: the kernel's expression."""
+# --- the voxel grid and the probe's offsets ----------------------------------------------------------------------
+
+
+def _voxel_box(grid: LampGrid) -> tuple[np.ndarray, np.ndarray]:
+    """Voxels and edge per axis: axis b is grid (b + 2) % 3's u axis. The three grids must be one voxel grid."""
+    n = np.array([grid.counts[(b + 2) % 3, 0] for b in range(3)], dtype=np.int64)
+    h = np.array([grid.cell[(b + 2) % 3, 0] for b in range(3)], dtype=np.float64)
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        if tuple(grid.counts[a]) != (n[u], n[v]) or tuple(grid.cell[a]) != (h[u], h[v]):
+            raise ValueError("grid: the reference needs one voxel grid (LampGrid(lower, upper, cell_size))")
+    return n, h
+
+
+def voxel_diagonal(h) -> float:
+    """``sqrt((hx^2 + hy^2) + hz^2)`` [m]."""
+    hx, hy, hz = (float(x) for x in h)
+    return float(np.sqrt((hx * hx + hy * hy) + hz * hz))
+
+
+def band_radius(h, rho) -> float:
+    """Every fluid voxel lies within rho + one diagonal of a reached one; ``(rho + diagonal)(1 + 1e-9)`` [m]."""
+    return (float(rho) + voxel_diagonal(h)) * (1.0 + 1e-9)
+
+
+def attribution_bound(h, rho) -> np.ndarray:
+    """Per axis, the largest ``|p - c| - r`` of a crossing's nearest sphere: ``rho + sqrt((rho + h_a/2 + g)^2 +
+    (h_a/2)^2)``, g the voxel diagonal (fluid is within rho + g of a reached point) [m], shape (3,)."""
+    g = voxel_diagonal(h)
+    half = 0.5 * np.asarray(h, dtype=np.float64)
+    return float(rho) + np.hypot(float(rho) + half + g, half)
+
+
+def _offset_inside(off, h, rho):
+    """Offset (i, j, k) is within rho: ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2``, each square as t * t."""
+    t = [off[..., a].astype(np.float64) * h[a] for a in range(3)]
+    return ((t[0] * t[0] + t[1] * t[1]) + t[2] * t[2]) <= rho * rho
+
+
+def dilation_table(h, rho) -> np.ndarray:
+    """``table[|dy|, |dz|]`` = the largest |dx| of an offset within rho, or -1, shape (wy + 1, wz + 1)."""
+    h = np.asarray(h, dtype=np.float64)
+    w = [int(np.floor(rho / h[a])) + 2 for a in range(3)]
+    grid = np.stack(np.meshgrid(*(np.arange(x + 1) for x in w), indexing="ij"), axis=-1)
+    inside = _offset_inside(grid, h, float(rho))
+    wy = int(np.flatnonzero(inside[0, :, 0]).max())
+    wz = int(np.flatnonzero(inside[0, 0, :]).max())
+    table = np.full((wy + 1, wz + 1), -1, dtype=np.int64)
+    for j in range(wy + 1):
+        for k in range(wz + 1):
+            xs = np.flatnonzero(inside[:, j, k])
+            if len(xs):
+                table[j, k] = xs.max()
+    return table
+
+
+# --- voxel maps --------------------------------------------------------------------------------------------------
+
+
+def _rasterize(local, r, rho, n, h):
+    """Allowed (no ``(dx dx + dy dy) + dz dz < (r + rho)^2``, dx = (i + 1/2) hx - cx), its rounding flags, and
+    solid (``... < r^2``)."""
     blocked = np.zeros(tuple(n), dtype=bool)
+    solid = np.zeros(tuple(n), dtype=bool)
     near = np.zeros(tuple(n), dtype=bool)
     for k in range(len(r)):
         c = local[k]
@@ -93,8 +191,9 @@ def _allowed(local, r, rho, n, h):
             dz[None, None, :] * dz[None, None, :]
         )
         blocked[tuple(sl)] |= d2 < big2
+        solid[tuple(sl)] |= d2 < r[k] * r[k]
         near[tuple(sl)] |= np.abs(np.sqrt(d2) - big) <= tol
-    return ~blocked, near
+    return ~blocked, near, solid
 
 
 def _reachable(allowed):
@@ -105,17 +204,11 @@ def _reachable(allowed):
     return (labels == labels[0, 0, 0])[1:-1, 1:-1, 1:-1]
 
 
-def _offset_inside(off, h, rho):
-    """The offset set's membership test of :func:`warp_lamp.wetted.dilation_table`, vectorised."""
-    t = [off[..., a].astype(np.float64) * h[a] for a in range(3)]
-    return ((t[0] * t[0] + t[1] * t[1]) + t[2] * t[2]) <= rho * rho
+def _dilate(reachable, h, radius, table):
+    """Voxels within ``radius`` of a reached voxel or of the outside, by scipy's exact Euclidean distance transform.
 
-
-def _fluid(reachable, h, rho, table):
-    """Voxels within rho of a reachable voxel or of the outside, by scipy's exact Euclidean distance transform.
-
-    The EDT's nearest reachable voxel decides wherever its distance is clearly off rho; within 1e-9 of rho the
-    offset set itself decides, by brute force over its offsets, so the answer is the table's, exactly.
+    The EDT's nearest reached voxel decides wherever its distance is clearly off the radius; within 1e-9 of it the
+    offset set decides, by brute force over its offsets, so the answer is the table's, exactly.
     """
     from scipy import ndimage
 
@@ -124,22 +217,306 @@ def _fluid(reachable, h, rho, table):
     dist = dist[1:-1, 1:-1, 1:-1]
     own = np.indices(padded.shape)[:, 1:-1, 1:-1, 1:-1]
     off = np.moveaxis(idx[:, 1:-1, 1:-1, 1:-1] - own, 0, -1)
-    fluid = _offset_inside(off, h, rho)
-    near = np.abs(dist - rho) <= 1e-9 * (rho + float(np.max(h)))
+    out = _offset_inside(off, h, radius)
+    near = np.abs(dist - radius) <= 1e-9 * (radius + float(np.max(h)))
     if near.any():
         wy, wz = table.shape[0] - 1, table.shape[1] - 1
         wx = int(table.max())
         offs = np.stack(np.meshgrid(*(np.arange(-w, w + 1) for w in (wx, wy, wz)), indexing="ij"), axis=-1)
         offs = offs.reshape(-1, 3)
-        offs = offs[_offset_inside(offs, h, rho)]
+        offs = offs[_offset_inside(offs, h, radius)]
         big = np.pad(reachable, ((wx, wx), (wy, wy), (wz, wz)), constant_values=True)
         pts = np.argwhere(near)
         hit = np.zeros(len(pts), dtype=bool)
         for o in offs:
             q = pts + o + np.array([wx, wy, wz])
             hit |= big[q[:, 0], q[:, 1], q[:, 2]]
-        fluid[near] = hit
-    return fluid, near
+        out[near] = hit
+    return out, near, dist
+
+
+# --- the exact test ----------------------------------------------------------------------------------------------
+
+
+def _dot(a, b):
+    """Row-wise ``(a0 b0 + a1 b1) + a2 b2``, the kernels' order."""
+    return (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]) + a[..., 2] * b[..., 2]
+
+
+def _cross(a, b):
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
+def _circle_points(x, ci, bi, cj, bj):
+    """Per row: the point of the circle where inflated spheres (ci, bi) and (cj, bj) meet that is nearest to x, and
+    whether they meet in a circle. On the circle's axis every point is as near: the one toward the coordinate axis
+    along which the centres differ least."""
+    e = cj - ci
+    l2 = _dot(e, e)
+    ok = l2 != 0.0
+    l2s = np.where(ok, l2, 1.0)
+    bi2 = bi * bi
+    frac = ((bi2 - bj * bj) + l2s) / (2.0 * l2s)
+    rc2 = bi2 - (frac * frac) * l2s
+    ok &= rc2 > 0.0
+    m = ci + e * frac[:, None]
+    q = x - m
+    qp = q - e * (_dot(q, e) / l2s)[:, None]
+    qp2 = _dot(qp, qp)
+    for row in np.flatnonzero((qp2 == 0.0) & ok):
+        er = e[row]
+        b = 0
+        if abs(er[1]) < abs(er[b]):
+            b = 1
+        if abs(er[2]) < abs(er[b]):
+            b = 2
+        qp[row] = _cross(er, np.eye(3)[b])
+        qp2[row] = _dot(qp[row], qp[row])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = m + qp * np.sqrt(rc2 / qp2)[:, None]
+    return z, ok
+
+
+def _vertex_points(ci, bi, cj, bj, ck, bk):
+    """Per row: the two points where three inflated spheres meet (two planes and a sphere), and whether they do (in
+    two points, with centres not collinear)."""
+    e1 = cj - ci
+    e2 = ck - ci
+    a11, a12, a22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+    det = a11 * a22 - a12 * a12
+    ok = det > 0.0
+    dets = np.where(ok, det, 1.0)
+    bi2 = bi * bi
+    b1 = ((bi2 - bj * bj) + a11) * 0.5
+    b2 = ((bi2 - bk * bk) + a22) * 0.5
+    al = (b1 * a22 - b2 * a12) / dets
+    be = (b2 * a11 - b1 * a12) / dets
+    w0 = e1 * al[:, None] + e2 * be[:, None]
+    nrm = _cross(e1, e2)
+    nn = _dot(nrm, nrm)
+    ok &= nn > 0.0
+    g2 = (bi2 - _dot(w0, w0)) / np.where(ok, nn, 1.0)
+    ok &= g2 >= 0.0
+    g = np.sqrt(np.where(ok, g2, 0.0))
+    base = ci + w0
+    return base + nrm * g[:, None], base - nrm * g[:, None], ok
+
+
+class _Exact:
+    """The exact fluid test at any point, over every valid active sphere (frame coordinates)."""
+
+    def __init__(self, local, r, rho, n, h, reachable, exposed):
+        from scipy.spatial import cKDTree
+
+        self.c, self.r, self.rho, self.n, self.h = local, r, rho, n, h
+        self.big = r + rho
+        self.reachable = reachable
+        self.exposed = exposed
+        self.diag = voxel_diagonal(h)
+        self.tree = cKDTree(local) if len(r) else None
+        self.rmax = float(r.max()) if len(r) else 0.0
+        # Exact copies (same centre and radius) share a group: a candidate on one is on all of them.
+        if len(r):
+            self.group = np.unique(np.column_stack([local, r]), axis=0, return_inverse=True)[1].reshape(-1)
+        else:
+            self.group = np.zeros(0, dtype=np.int64)
+
+    def _near(self, x, reach):
+        if self.tree is None:
+            return np.zeros(0, dtype=np.int64)
+        return np.array(sorted(self.tree.query_ball_point(x, reach * (1.0 + 1e-6) + 1e-9)), dtype=np.int64)
+
+    def _own(self, near, own):
+        """(M, K): sphere near[k] is one of candidate m's own spheres ``own[m]`` (-1: none) or an exact copy."""
+        out = np.zeros((len(own), len(near)), dtype=bool)
+        g = self.group[near][None, :]
+        for t in range(own.shape[1]):
+            s = own[:, t]
+            out |= (s >= 0)[:, None] & (g == self.group[np.maximum(s, 0)][:, None])
+        return out
+
+    def _reachable(self, z, own, others):
+        """Allowed candidate z joined to a reached corner of its voxel-centre cube by a segment that stays outside
+        every inflated ball: its own spheres' by the tangent test, the ``others``' by the clamped nearest point."""
+        lo = np.clip(np.floor(z / self.h - 0.5), -2.0, self.n + 1.0).astype(np.int64)
+        for corner in range(8):
+            idx = lo + np.array([corner & 1, (corner >> 1) & 1, (corner >> 2) & 1])
+            inside = np.all((idx >= 0) & (idx < self.n))
+            if inside and not self.reachable[tuple(idx)]:
+                continue
+            y = (idx + 0.5) * self.h
+            if any(_dot(y - z, z - self.c[s]) < 0.0 for s in own if s >= 0):
+                continue
+            d = z - y
+            dd = _dot(d, d)
+            w = y - self.c[others]
+            t = np.clip(-_dot(w, d) / dd, 0.0, 1.0) if dd > 0.0 else np.zeros(len(others))
+            p = w + d * t[:, None]
+            if not np.any(_dot(p, p) < self.big[others] * self.big[others]):
+                return True
+        return False
+
+    def _any_valid(self, zs, own, near):
+        """Whether one of the candidates ``zs`` (M, 3), on the inflated spheres ``own`` (M, 3; -1: none), is allowed
+        (outside every other inflated ball) and reachable."""
+        if not len(zs):
+            return False
+        mine = self._own(near, own)
+        v = zs[:, None, :] - self.c[near][None, :, :]
+        blocked = (_dot(v, v) < (self.big[near] * self.big[near])[None, :]) & ~mine
+        return any(self._reachable(zs[m], own[m], near[~mine[m]]) for m in np.flatnonzero(~blocked.any(axis=1)))
+
+    def fluid(self, x, lattice):
+        """Whether x is fluid by the exact test (for a lattice point the caller has checked solid and the
+        dilation). All candidates are computed; the kernels stop at the first valid one (same answer)."""
+        rho = self.rho
+        rho2 = rho * rho
+        near = self._near(x, self.rmax + 2.0 * rho + self.diag)
+        v = x - self.c[near]
+        d2 = _dot(v, v)
+        if not lattice:
+            if np.any(d2 < self.r[near] * self.r[near]):
+                return False
+            if self._any_valid(x[None, :], np.full((1, 3), -1), near):
+                return True
+        g = (self.r[near] + 2.0 * rho) * (1.0 + SLACK)
+        keep = self.exposed[near] & (d2 <= g * g)
+        ids = near[keep]  # increasing index
+        c, big = self.c[ids], self.big[ids]
+        v, d2 = v[keep], d2[keep]
+        # Faces.
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = c + v * (big / np.sqrt(d2))[:, None]
+        w = x - z
+        sel = (d2 > 0.0) & (_dot(w, w) <= rho2)
+        own = np.full((len(ids), 3), -1)
+        own[:, 0] = ids
+        if self._any_valid(z[sel], own[sel], near):
+            return True
+        # Edges (pairs a < b), and the vertices (triples a < b < k) on every circle that passes within rho of x.
+        pa, pb = np.triu_indices(len(ids), 1)
+        z, ok = _circle_points(x, c[pa], big[pa], c[pb], big[pb])
+        w = x - z
+        e2 = _dot(w, w)
+        sel = ok & (e2 <= rho2)
+        own = np.stack([ids[pa], ids[pb], np.full(len(pa), -1)], axis=1)
+        if self._any_valid(z[sel], own[sel], near):
+            return True
+        gated = np.flatnonzero(ok & (e2 <= rho2 * (1.0 + SLACK)))
+        per = len(ids) - pb[gated] - 1  # third spheres after b
+        ta, tb = np.repeat(pa[gated], per), np.repeat(pb[gated], per)
+        start = np.repeat(np.cumsum(per) - per, per)
+        tk = np.arange(int(per.sum())) - start + tb + 1
+        z1, z2, okv = _vertex_points(c[ta], big[ta], c[tb], big[tb], c[tk], big[tk])
+        own = np.stack([ids[ta], ids[tb], ids[tk]], axis=1)
+        zs = np.concatenate([z1, z2])
+        own = np.concatenate([own, own])
+        w = x - zs
+        sel = np.concatenate([okv, okv]) & (_dot(w, w) <= rho2)
+        return self._any_valid(zs[sel], own[sel], near)
+
+
+def _exposed(local, r, rho, n, h, reachable):
+    """Spheres with a reached voxel (or the outside) within r + rho + 2 diagonals: a looser pruning than the
+    kernels' (r + rho + one diagonal), so that a sphere the kernels drop wrongly would show as a difference."""
+    from scipy import ndimage
+
+    g = voxel_diagonal(h)
+    padded = np.pad(reachable, 1, constant_values=True)
+    dist = ndimage.distance_transform_edt(~padded, sampling=h)
+    idx = np.clip(np.floor(local / h).astype(np.int64) + 1, 0, np.array(padded.shape) - 1)
+    d = dist[idx[:, 0], idx[:, 1], idx[:, 2]] - g
+    outside = np.any((local - (r + rho + 2 * g)[:, None] <= 0) | (local + (r + rho + 2 * g)[:, None] >= n * h), axis=1)
+    return outside | (d <= r + rho + 2.0 * g)
+
+
+# --- thin chords -------------------------------------------------------------------------------------------------
+
+
+def _thin_chords(local, r, n, h, a):
+    """Every thin chord on the rows along axis a: arrays (sphere, iu, iv, m0, lo, hi). A row meets the open ball
+    when ``t^2 < r^2`` (the voxel test with the a-term zero); the chord is thin when none of the centres m0 - 1 ...
+    m0 + 2 is inside, ``m0 = floor(c_a / h_a - 1/2)`` in [-1, n_a - 1]."""
+    u, v = (a + 1) % 3, (a + 2) % 3
+    out = []
+    for s in range(len(r)):
+        c, rr = local[s], r[s]
+        r2 = rr * rr
+        f = c[a] / h[a] - 0.5
+        if not (f >= -1.0 and f < float(n[a])):
+            continue
+        m0 = int(np.floor(f))
+        iu = np.arange(
+            max(int(np.floor((c[u] - rr) / h[u] - 0.5)) - 1, 0), min(int(np.ceil((c[u] + rr) / h[u])), n[u] - 1) + 1
+        )
+        iv = np.arange(
+            max(int(np.floor((c[v] - rr) / h[v] - 0.5)) - 1, 0), min(int(np.ceil((c[v] + rr) / h[v])), n[v] - 1) + 1
+        )
+        if len(iu) == 0 or len(iv) == 0:
+            continue
+        gu, gv = np.meshgrid(iu, iv, indexing="ij")
+        d = np.zeros((*gu.shape, 3))
+        d[..., u] = (gu + 0.5) * h[u] - c[u]
+        d[..., v] = (gv + 0.5) * h[v] - c[v]
+        t2 = _dot(d, d)
+        thin = t2 < r2
+        for m in range(m0 - 1, m0 + 3):
+            d[..., a] = (m + 0.5) * h[a] - c[a]
+            thin &= ~(_dot(d, d) < r2)
+        for k in np.flatnonzero(thin.ravel()):
+            half = np.sqrt(r2 - t2.ravel()[k])
+            out.append((s, gu.ravel()[k], gv.ravel()[k], m0, c[a] - half, c[a] + half))
+    return out
+
+
+def _row_point(a, t, iu, iv, h):
+    p = np.zeros(3)
+    p[a] = t
+    u, v = (a + 1) % 3, (a + 2) % 3
+    p[u] = (iu + 0.5) * h[u]
+    p[v] = (iv + 0.5) * h[v]
+    return p
+
+
+def _merge_thin(chords, fluid, n, h, a, exact):
+    """Merged thin dry intervals between two fluid samples: list of (iu, iv, face, entry sphere, exit sphere)."""
+    groups = {}
+    for s, iu, iv, m0, lo, hi in chords:
+        groups.setdefault((iu, iv, m0), []).append((lo, s, hi))
+    out = []
+    for (iu, iv, m0), items in groups.items():
+        ok = True
+        for m in (m0, m0 + 1):
+            if 0 <= m < n[a]:
+                idx = [0, 0, 0]
+                idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3] = m, iu, iv
+                ok &= bool(fluid[tuple(idx)])
+        if not ok:
+            continue
+        items.sort()
+        first, cur, end = None, None, None
+        for lo, s, hi in items:
+            if first is not None and not (
+                lo <= cur or not exact.fluid(_row_point(a, (cur + lo) * 0.5, iu, iv, h), False)
+            ):
+                out.append((iu, iv, m0 + 1, first, end))
+                first = None
+            if first is None:
+                first, cur, end = s, hi, s
+            elif hi > cur or (hi == cur and s < end):
+                cur, end = hi, s
+        out.append((iu, iv, m0 + 1, first, end))
+    return out
+
+
+# --- attribution -------------------------------------------------------------------------------------------------
 
 
 def _nearest(points, cen, rad, ids, tol, chunk=100_000):
@@ -180,7 +557,7 @@ def _nearest(points, cen, rad, ids, tol, chunk=100_000):
 
 
 def wetted_reference(
-    centers, radii, grid: LampGrid, *, probe_radius: float, lamps="all", active=None, allowed=None
+    centers, radii, grid: LampGrid, *, probe_radius: float, lamps="all", active=None, allowed=None, in_frame=False
 ) -> WettedReference:
     """The wetted-surface mode in float64, by brute force over spheres and scipy over voxels.
 
@@ -194,9 +571,11 @@ def wetted_reference(
         active: Optional mask, shape (N,); inactive particles are absent.
         allowed: Optional allowed map, bool (nx, ny, nz), to replace the reference's own (to check the
             kernels' later stages on the kernels' own allowed map).
+        in_frame: ``centers`` are frame coordinates already (``grid.origin`` is not subtracted): pass the float32
+            positions the kernels saw to get their answer bit for bit.
     """
-    n, h = voxel_box(grid)
-    rho = check_probe_radius(probe_radius)
+    n, h = _voxel_box(grid)
+    rho = check_positive("probe_radius", probe_radius, allow_zero=True)
     mask = lamp_mask(lamps)
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -206,7 +585,7 @@ def wetted_reference(
         valid = np.isfinite(c).all(axis=1) & np.isfinite(r) & (r > 0)
     visible = on & valid
     invalid = int((on & ~valid).sum())
-    local = c[visible] - grid.origin
+    local = c[visible] if in_frame else c[visible] - grid.origin
     rv = r[visible]
     ids = np.flatnonzero(visible)
     size = n * h
@@ -214,7 +593,7 @@ def wetted_reference(
     big = rv[:, None] + rho
     tight = int(np.any((local - big < -0.5 * h) | (local + big > size + 0.5 * h), axis=1).sum())
 
-    own_allowed, allowed_near = _allowed(local, rv, rho, n, h)
+    own_allowed, allowed_near, solid = _rasterize(local, rv, rho, n, h)
     if allowed is None:
         allowed = own_allowed
     else:
@@ -222,11 +601,20 @@ def wetted_reference(
         if allowed.shape != tuple(n):
             raise ValueError(f"allowed: expected shape {tuple(n)}, got {allowed.shape}")
     reachable = _reachable(allowed)
-    table = dilation_table(h, rho)
-    fluid, dilation_near = _fluid(reachable, h, rho, table)
+    fluid, near_rho, _ = _dilate(reachable, h, rho, dilation_table(h, rho))
+    radius = band_radius(h, rho)
+    band, near_band, _ = _dilate(reachable, h, radius, dilation_table(h, radius))
+
+    exact = _Exact(local, rv, rho, n, h, reachable, _exposed(local, rv, rho, n, h, reachable))
+    todo = np.argwhere(band & ~fluid & ~solid)
+    rescued = 0
+    for idx in todo:
+        if exact.fluid((idx + 0.5) * h, True):
+            fluid[tuple(idx)] = True
+            rescued += 1
 
     tol = 4.0 * EPS32 * ((float(np.abs(local).max()) if len(local) else 0.0) + (float(rv.max()) if len(rv) else 0.0))
-    crossings, ray_crossings = {}, {}
+    crossings, thin, thin_faces, ray_crossings = {}, {}, {}, {}
     counts = np.zeros((count, 3), dtype=np.int64)
     hits = np.zeros(count, dtype=np.int64)
     for a in range(3):
@@ -241,29 +629,43 @@ def wetted_reference(
         pts[:, v] = (iv + 0.5) * h[v]
         owner, dist, tie = _nearest(pts, local, rv, ids, tol)
         crossings[a] = dict(u=iu, v=iv, face=face, enters=enters, owner=owner, distance=dist, near_tie=tie)
+        merged = _merge_thin(_thin_chords(local, rv, n, h, a), fluid, n, h, a, exact)
+        tu, tv, tf, te, tx = (np.array([m[k] for m in merged], dtype=np.int64) for k in range(5))
+        thin[a] = dict(u=tu, v=tv, face=tf, entry=ids[te] if len(te) else te, exit=ids[tx] if len(tx) else tx)
+        tfaces = np.zeros((int(n[u]), int(n[v]), int(n[a]) + 1), dtype=np.int64)
+        np.add.at(tfaces, (tu, tv, tf), 1)
+        thin_faces[a] = tfaces
         rc = np.zeros((int(n[u]), int(n[v])), dtype=np.int64)
         np.add.at(rc, (iu[enters], iv[enters]), 1)
+        np.add.at(rc, (tu, tv), 1)
         ray_crossings[a] = rc
-        for side, sel, sign in ((0, enters, 1), (1, ~enters, -1)):
+        for side, sel, sign, thin_owner in ((0, enters, 1, thin[a]["entry"]), (1, ~enters, -1, thin[a]["exit"])):
             if not (mask >> (2 * a + side)) & 1:
                 continue
             got = sel & (owner >= 0)
             np.add.at(counts[:, a], owner[got], sign)
             np.add.at(hits, owner[got], 1)
-    bound = np.array([attribution_bound(h[a], rho) for a in range(3)])
+            np.add.at(counts[:, a], thin_owner, sign)
+            np.add.at(hits, thin_owner, 1)
     return WettedReference(
         shape=tuple(int(x) for x in n),
         h=h,
         allowed=allowed,
         allowed_ambiguous=allowed_near,
+        solid=solid,
         reachable=reachable,
+        band=band,
         fluid=fluid,
-        dilation_near=dilation_near,
+        dilation_near=near_rho | near_band,
         crossings=crossings,
+        thin=thin,
+        thin_faces=thin_faces,
         ray_crossings=ray_crossings,
         counts=counts,
         hits=hits,
-        bound=bound,
+        bound=attribution_bound(h, rho),
+        uncertain=len(todo),
+        rescued=rescued,
         invalid=invalid,
         outside=outside,
         tight=tight,
