@@ -9,7 +9,7 @@
 # README's figures, docs/rock_cutting*.png), $OUT/rock-cutting.log; prints the tables last. The rock's calibration
 # (UCS, Brazilian tensile strength) is read from the committed CPU result: the specimens are packed on the CPU, so a
 # GPU run of examples/bonded_rock.py would give the same figures to rounding (about 30 s more; not needed).
-source "$(dirname "$0")/../preamble.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/../preamble.sh"
 CAL="bench/results/cpu-dev-2026-11-25-rock-calibration.json"
 t0=$(date +%s)
 python3 examples/rock_cutting.py --calibration "$CAL" --json "$OUT/rock-cutting.json" --plot "$OUT/rock-cutting.png" \

@@ -13,7 +13,7 @@ mkdir -p "$OUT"
 export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 if [ "$DEVICE" != "cpu" ]; then
   # The lease preamble: the GPU named, the carried test extras (scipy, for the reference) installed.
-  source "$(dirname "$0")/../preamble.sh"
+  source "$(dirname "${BASH_SOURCE[0]}")/../preamble.sh"
   # The CUDA cases of the wetted tests (the CPU ones ran on the dev machine).
   python3 -m pytest -q -p no:cacheprovider tests/test_wetted.py -k "cuda" 2>&1 | tee "$OUT/wetted-pytest.log" | tail -5
 fi
