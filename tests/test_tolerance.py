@@ -33,7 +33,7 @@ SYNTHETIC = {
 )
 def test_the_cheapest_eligible_setting_is_chosen(tol, want):
     """Among the settings whose error meets the tolerance, the one with the smallest time ratio wins."""
-    c = choose_settings(tol, "cpu", table=SYNTHETIC)
+    c = choose_settings(tol, "cpu", table=SYNTHETIC, margin=1.0)
     assert (c.criterion, c.cells_per_diameter) == want
     assert c.error <= tol
     cheaper = [r for r in SYNTHETIC["rows"] if r["ratio"]["cpu"] < c.time_ratio]
@@ -44,6 +44,9 @@ def test_a_tolerance_no_setting_reaches_is_refused_by_name():
     """A tolerance tighter than the table's best, or not a positive number, raises naming ``tolerance``."""
     with pytest.raises(ValueError, match=r"tolerance: 1e-05 is tighter than any setting"):
         choose_settings(1e-5, "cpu", table=SYNTHETIC)
+    # The margin: a setting whose table error is the tolerance itself is not eligible with the default margin.
+    assert choose_settings(0.03, "cpu", table=SYNTHETIC, margin=1.0).cells_per_diameter == 8
+    assert choose_settings(0.03, "cpu", table=SYNTHETIC).criterion == "area"
     for bad in (0.0, -0.1, float("nan")):
         with pytest.raises(ValueError, match="tolerance"):
             choose_settings(bad, "cpu", table=SYNTHETIC)
@@ -65,8 +68,9 @@ def test_tolerance_leaves_the_settings_to_the_choice():
 
 @pytest.mark.parametrize("tol", [0.1, 0.03])
 def test_the_choice_runs_and_meets_the_tolerance_on_a_ball(device, tol):
-    """lamp_forces(tolerance=t) equals the chosen settings given explicitly, and its measured error is <= t."""
-    ball = scene_lattice_ball()
+    """lamp_forces(tolerance=t) equals the chosen settings given explicitly, and its measured error is <= t on a
+    smaller ball of the table's lattice family (another scene than the table's)."""
+    ball = scene_lattice_ball(diameter=0.05, seed=3)
     c, r = ball.centers, ball.radii
     choice = choose_settings(tol, device)
     f = wl.lamp_forces(c, r, P, tolerance=tol, device=device)

@@ -7,9 +7,12 @@ time on each device kind measured.
 
 The rule (:func:`choose_settings`):
 
-1. the error of a setting is the largest, over the table's scenes, of the RMS per-particle force error against
-   the exact visible areas, over the surface particles, relative to P pi rbar^2 (``measures.visible_area_error``);
-2. the settings whose error is at most ``tolerance`` are eligible;
+1. the error of a setting is the largest, over the table's scenes (a dense random packing and two lattice balls,
+   ``bench_tolerance.table_scenes``), of the RMS per-particle force error against the exact visible areas, over
+   the surface particles, relative to P pi rbar^2 (``measures.visible_area_error``);
+2. the settings whose error times :data:`MARGIN` (1.2) is at most ``tolerance`` are eligible: a packing the table
+   never saw has its own error, and on five lattice balls of other seeds (25 setting-scene pairs) the largest
+   ratio of their error to the table's was 1.10;
 3. among them, the one with the smallest update time on this device's kind (its time relative to criterion 1 at 4
    cells per diameter on the same kind, so kinds measured on different days compare); a CUDA device of a kind the
    table lacks uses the table's CUDA kind, the CPU the CPU's.
@@ -32,8 +35,10 @@ import warp as wp
 
 from warp_lamp.validate import check_positive
 
-__all__ = ["TABLE_PATH", "LampChoice", "choose_settings", "device_kind", "load_table"]
+__all__ = ["MARGIN", "TABLE_PATH", "LampChoice", "choose_settings", "device_kind", "load_table"]
 
+#: How far below the tolerance a setting's table error must lie (rule 2 of the module docstring).
+MARGIN = 1.2
 #: The speed-error table the package ships.
 TABLE_PATH = Path(__file__).resolve().parent / "data" / "speed_error.json"
 
@@ -108,13 +113,14 @@ def device_kind(device, table: dict) -> str:
     return cuda[0] if cuda else "cpu"
 
 
-def choose_settings(tolerance, device=None, *, table: dict | None = None) -> LampChoice:
-    """The cheapest setting whose table error is at most ``tolerance`` (the module's rule).
+def choose_settings(tolerance, device=None, *, table: dict | None = None, margin: float = MARGIN) -> LampChoice:
+    """The cheapest setting whose table error times ``margin`` is at most ``tolerance`` (the module's rule).
 
     Args:
         tolerance: Largest acceptable RMS per-particle force error, as a fraction of P pi rbar^2 (0.01 is 1%).
         device: The device the lamp will run on (its kind decides the times).
         table: A speed-error table (the package's by default).
+        margin: The factor of rule 2 (:data:`MARGIN`).
 
     Raises:
         ValueError: naming ``tolerance`` when it is not a number > 0, or tighter than any setting in the table
@@ -123,12 +129,13 @@ def choose_settings(tolerance, device=None, *, table: dict | None = None) -> Lam
     tol = check_positive("tolerance", tolerance)
     table = load_table() if table is None else table
     kind = device_kind(device, table)
-    rows = [r for r in table["rows"] if r["error"] <= tol and r["ratio"].get(kind) is not None]
+    rows = [r for r in table["rows"] if margin * r["error"] <= tol and r["ratio"].get(kind) is not None]
     if not rows:
         best = min(table["rows"], key=lambda r: r["error"])
         raise ValueError(
-            f"tolerance: {tol:.3g} is tighter than any setting in the speed-error table reaches (best "
-            f"{best['error']:.3g}: {best['criterion']} at {best['cells_per_diameter']:g} cells per diameter); "
+            f"tolerance: {tol:.3g} is tighter than any setting in the speed-error table reaches with its margin of "
+            f"{margin:g} (best {best['error']:.3g}: {best['criterion']} at {best['cells_per_diameter']:g} cells per "
+            "diameter); "
             "choose the settings yourself (criterion='area', resolver='exact', depth_slots=4)"
         )
     r = min(rows, key=lambda r: (r["ratio"][kind], r["error"]))
