@@ -27,8 +27,8 @@ outside, :mod:`warp_lamp.wetted`).
   memo's practice for a supported face: the base takes the top's load through the rock; but then anything the
   lamp lights from above and nothing lights from below, debris thrown past the slab's edge or a chip the fluid
   gets under, is pressed down with nothing pushing back); "wall", the lamp's walls
-  (``ShiningLamp(walls=[((0, 0, z_base), (0, 0, 1))])``: the fluid cannot pass below the base), once the lamp has
-  them. The cutter is no wall: it never meets the fluid.
+  (``ShiningLamp(walls=[((0, 0, z_base), (0, 0, 1))])``: the fluid cannot pass below the base). The cutter is no
+  wall: it never meets the fluid.
 * Lamp: ``ShiningLamp(grid, follow=True)`` on a box grid whose capacity is the lamp's domain (the slab's box with
   DOMAIN_SIDE depths of cut of room on its sides and DOMAIN_TOP above it, for the broken material) plus a radius
   and, in the wetted mode, the probe and a cell; a particle whose centre leaves the domain (debris thrown clear)
@@ -58,7 +58,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import inspect
 import json
 import sys
 import time
@@ -145,19 +144,12 @@ STUDY_PRESSURES = (0.0, 60e6, 20e6, 40e6, 10e6)
 TINY_PRESSURES = (0.0, 60e6)
 
 
-def walls_supported() -> bool:
-    """Whether this warp_lamp's ShiningLamp takes ``walls`` (planes the fluid cannot cross)."""
-    return "walls" in inspect.signature(wl.ShiningLamp.__init__).parameters
-
-
 def resolve_base(base: str, surfaces: str) -> str:
     """The base treatment to use ("auto" is "clamped" in both modes), or ValueError naming ``base``."""
     if base not in BASES:
         raise ValueError(f"base: expected one of {BASES}, got {base!r}")
     if base == "auto":
         return "clamped"
-    if base == "wall" and not walls_supported():
-        raise ValueError("base: 'wall' needs ShiningLamp(walls=...), which this warp_lamp does not have yet")
     return base
 
 

@@ -420,13 +420,18 @@ def test_captured_block_records_one_block_of_cycles(device, monkeypatch):
     assert [k for k, upd in enumerate(calls) if upd] == list(range(0, test.block, rc.TINY.update_every))
 
 
-def test_wall_base_needs_lamp_walls():
-    """The walls option is one switch: refused with a clear message while ShiningLamp has no walls."""
+def test_wall_base_takes_the_top_lamps_reaction_and_the_sides_balance(device):
+    """With the slab's base as the lamp's wall (base "wall"), the -z lamp lights nothing, x and y balance exactly,
+    and on z the body's and the wall's counts together take every ray of the top lamp's window."""
     rc = load_example("rock_cutting")
-    if rc.walls_supported():
-        pytest.skip("this warp_lamp has walls")
-    with pytest.raises(ValueError, match="walls"):
-        rc.resolve_base("wall", "all")
+    test = rc.RockCutting(rc.TINY, pressure=20e6, surfaces="first", base="wall", device=device)
+    test.pressure.assign(np.array([20e6], dtype=np.float32))
+    test.advance(test.block)
+    d = test.lamp.diagnostics()
+    assert d.counts[:, 0].sum() == 0 and d.counts[:, 1].sum() == 0
+    assert d.lit["-z"] >= 0 and int(np.count_nonzero(d.owners["-z"] >= 0)) == 0
+    window = int(test.lamp.grid.counts[2].prod())
+    assert int(d.counts[:, 2].sum() + d.wall_counts[:, 2].sum()) == -window
 
 
 def test_bad_inputs_are_refused_by_name():
