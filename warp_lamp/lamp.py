@@ -170,9 +170,9 @@ class LampOptions:
         walls = check_walls(walls)
         if len(walls) and area:
             raise ValueError(
-                "walls: not with criterion='area': its per-cell payout balances the two lamps of a cell against each "
-                "other (what one lamp's rays give, the other's take back), and a wall that stops the rays of one lamp "
-                "but not the other's would leave that payout unbalanced; use criterion 0 or 1, or surfaces='all'"
+                "walls: only with criteria 0 and 1 (surfaces='first' or 'all'), not with criterion='area': its "
+                "per-cell payout balances the two lamps of a cell against each other, and a wall that stops the rays "
+                "of one lamp but not the other's would leave that payout unbalanced"
             )
         return cls(
             criterion=criterion,

@@ -1011,8 +1011,8 @@ def wet_cross(
 
     Axis 0: face words q = (nwx + 1) row + w, faces f = 32 w + b of row (j, k) (ray j + ny k). Axis 1: q = w + nwx
     (jf + (ny + 1) k), faces jf = 0..ny of the rays of voxels x = 32 w + b (ray k + nz x). Axis 2: q = w + nwx
-    (j + ny kf), faces kf = 0..nz (ray x + nx j). Beyond the box is fluid, on the fluid side of every wall
-    (``g >= 0``: the virtual fluid).
+    (j + ny kf), faces kf = 0..nz (ray x + nx j). Beyond the box is fluid: everywhere without walls, with walls
+    within rho of the points that keep rho from every wall (``walls_fluid``, the virtual fluid).
     """
     t = wp.tid()
     axis = int(0)
@@ -1032,7 +1032,6 @@ def wet_cross(
     k = int(0)
     w = int(0)
     face = int(0)
-    zero = wp.float64(0.0)
     if axis == 0:
         w = q % (nwx + 1)
         row = q / (nwx + 1)
@@ -1045,15 +1044,18 @@ def wet_cross(
             if w < nwx:
                 after = fluid[row * nwx + w]
         else:
-            # The voxels past the row's ends (also the padding bits of its last word) are the virtual fluid.
-            run = wall_row_run(walls, zero, j, k, box)
-            after = run_bits(run, w)
+            # The samples just past the row's ends are the virtual fluid (``walls_fluid``); the faces of this word
+            # reach at most position n_x, so the other padding bits do not matter.
+            after = wp.uint32(0)
             if w < nwx:
-                after = (fluid[row * nwx + w] & row_mask(box, w)) | (~row_mask(box, w) & after)
+                after = fluid[row * nwx + w] & row_mask(box, w)
+            top = box.n[0] - 32 * w
+            if top >= 0 and top < 32:
+                if walls_fluid(virtual_point(box.n[0], j, k, box), walls, box.rho):
+                    after = after | (wp.uint32(1) << wp.uint32(top))
             if w > 0:
-                m = row_mask(box, w - 1)
-                prev = ((fluid[row * nwx + w - 1] & m) | (~m & run_bits(run, w - 1))) >> wp.uint32(31)
-            elif not in_run(run, -1):
+                prev = (fluid[row * nwx + w - 1] & row_mask(box, w - 1)) >> wp.uint32(31)
+            elif not walls_fluid(virtual_point(-1, j, k, box), walls, box.rho):
                 prev = wp.uint32(0)
         before = (after << wp.uint32(1)) | prev
         valid = low_mask(box.n[0] + 1 - 32 * w)
@@ -1066,22 +1068,22 @@ def wet_cross(
             if face > 0:
                 before = fluid[word_at(box, w, face - 1, k)]
             elif walls.n > 0:
-                before = run_bits(wall_row_run(walls, zero, -1, k, box), w)
+                before = virtual_word(walls, w, wp.vec3i(0, -1, k), box)
             if face < box.n[1]:
                 after = fluid[word_at(box, w, face, k)]
             elif walls.n > 0:
-                after = run_bits(wall_row_run(walls, zero, box.n[1], k, box), w)
+                after = virtual_word(walls, w, wp.vec3i(0, box.n[1], k), box)
         else:
             j = rest % box.n[1]
             face = rest / box.n[1]
             if face > 0:
                 before = fluid[word_at(box, w, j, face - 1)]
             elif walls.n > 0:
-                before = run_bits(wall_row_run(walls, zero, j, -1, box), w)
+                before = virtual_word(walls, w, wp.vec3i(0, j, -1), box)
             if face < box.n[2]:
                 after = fluid[word_at(box, w, j, face)]
             elif walls.n > 0:
-                after = run_bits(wall_row_run(walls, zero, j, box.n[2], box), w)
+                after = virtual_word(walls, w, wp.vec3i(0, j, box.n[2]), box)
         valid = row_mask(box, w)
     tr = (before ^ after) & valid & (low_mask(bits) << wp.uint32(sub * bits))
     while tr != wp.uint32(0):
@@ -1336,11 +1338,8 @@ def candidate_check(
         if not defining(hint, i, j, k, positions, radii):
             if inside_inflated(z, hint, positions, radii, box):
                 return hint
-    for w in range(walls.n):
-        tag = WALL_TAG - w
-        if i != tag and j != tag and k != tag:
-            if plane_value(walls.frame[w], z) < box.rho:
-                return -1
+    if not walls_allow(z, i, j, k, walls, box.rho):
+        return -1
     near = (rmax + wp.float64(2.0) * box.rho) * (wp.float64(1.0) + SLACK)
     blocker = blocked_point(x, z, i, j, k, near, positions, radii, heads, next_in_bin, box)
     if blocker >= 0:
@@ -1772,6 +1771,77 @@ def walls_corner(p1: wp.vec4, p2: wp.vec4, p3: wp.vec4, rho: wp.float64) -> wp.v
         + cross3(n1, n2) * (wp.float64(p3[3]) + rho)
     ) / det
     return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
+def walls_allow(z: wp.vec3d, i: wp.int32, j: wp.int32, k: wp.int32, walls: LampWalls, rho: wp.float64) -> wp.bool:
+    """z keeps rho from every wall but its own (tags i, j, k): ``g >= rho``."""
+    for w in range(walls.n):
+        tag = WALL_TAG - w
+        if i != tag and j != tag and k != tag:
+            if plane_value(walls.frame[w], z) < rho:
+                return False
+    return True
+
+
+@wp.func
+def walls_fluid(x: wp.vec3d, walls: LampWalls, rho: wp.float64) -> wp.bool:
+    """The virtual fluid beyond the box: x lies within rho of the convex set C of points that keep rho from every
+    wall (``g >= rho``), spheres aside. Exact: x in C, or the nearest point of C, on a face, an edge or a vertex
+    of C (a wall's face point, two walls' line point, three walls' corner) that lies in C and within rho. Without
+    walls, everywhere; with one wall, where ``g >= 0`` (to the rounding of its unit normal); where walls meet, less
+    their fillet of radius rho, as the voxels along an axis that no wall cuts see it."""
+    rho2 = rho * rho
+    inside = bool(True)
+    for w in range(walls.n):
+        g = plane_value(walls.frame[w], x)
+        if g < wp.float64(0.0):
+            return False
+        if g < rho:
+            inside = False
+    if inside:
+        return True
+    for w in range(walls.n):
+        p1 = walls.frame[w]
+        z = wall_face_point(x, p1, rho)
+        e = x - z
+        if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, -1, -1, walls, rho):
+            return True
+        for v in range(w + 1, walls.n):
+            p2 = walls.frame[v]
+            lp = wall_line_point(x, p1, p2, rho)
+            if lp[3] != wp.float64(0.0):
+                z = wp.vec3d(lp[0], lp[1], lp[2])
+                e = x - z
+                if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, WALL_TAG - v, -1, walls, rho):
+                    return True
+            for u in range(v + 1, walls.n):
+                cp = walls_corner(p1, p2, walls.frame[u], rho)
+                if cp[3] != wp.float64(0.0):
+                    z = wp.vec3d(cp[0], cp[1], cp[2])
+                    e = x - z
+                    if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, WALL_TAG - v, WALL_TAG - u, walls, rho):
+                        return True
+    return False
+
+
+@wp.func
+def virtual_point(i: wp.int32, j: wp.int32, k: wp.int32, box: WetBox) -> wp.vec3d:
+    """The voxel centre (i, j, k), also beyond the box."""
+    return wp.vec3d(voxel_centre(i, box.h[0]), voxel_centre(j, box.h[1]), voxel_centre(k, box.h[2]))
+
+
+@wp.func
+def virtual_word(walls: LampWalls, w: wp.int32, at: wp.vec3i, box: WetBox) -> wp.uint32:
+    """Word w of the virtual samples on the row (at[1], at[2]) beyond the box (x = 32 w + b): the virtual fluid
+    (``walls_fluid``), at the voxels of the word."""
+    out = wp.uint32(0)
+    m = row_mask(box, w)
+    for b in range(32):
+        if ((m >> wp.uint32(b)) & wp.uint32(1)) != wp.uint32(0):
+            if walls_fluid(virtual_point(32 * w + b, at[1], at[2], box), walls, box.rho):
+                out = out | (wp.uint32(1) << wp.uint32(b))
+    return out
 
 
 @wp.func
@@ -2385,14 +2455,14 @@ def fluid_sample(
     box: WetBox,
     walls: LampWalls,
 ) -> wp.bool:
-    """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are on the fluid side of
-    every wall (``g >= 0``)."""
+    """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are the virtual fluid
+    (``walls_fluid``: all of them without walls)."""
     ijk = wp.vec3i(0)
     ijk[a] = m
     ijk[(a + 1) % 3] = iu
     ijk[(a + 2) % 3] = iv
     if m < 0 or m >= box.n[a]:
-        return outside_ok(walls, wp.float64(0.0), ijk, box)
+        return walls_fluid(virtual_point(ijk[0], ijk[1], ijk[2], box), walls, box.rho)
     word = fluid[word_at(box, ijk[0] / 32, ijk[1], ijk[2])]
     return ((word >> wp.uint32(ijk[0] % 32)) & wp.uint32(1)) != wp.uint32(0)
 

@@ -20,8 +20,9 @@ point. It restates the mode's definition and imports nothing from the modules it
 - **Walls** (planes ``g(x) = n . x - d``, the fluid where g > 0, as the kernels read them: float32 frame planes
   evaluated in float64 as ``((n0 x0 + n1 x1) + n2 x2) - d``): the probe centre keeps ``g >= rho`` (blocked where
   ``g < rho``), a voxel centre with ``g < 0`` is solid; beyond the box the lattice points with ``g >= rho`` for every
-  wall are allowed and reached (all of them, whatever their connection), and the virtual samples with ``g >= 0``
-  for every wall are fluid. The offset plane g = rho is one more surface of the union whose critical points are
+  wall are allowed and reached (all of them, whatever their connection), and the virtual samples within rho of
+  those points (spheres aside: the walls' own fluid; ``g >= 0`` for one wall) are fluid. The offset plane
+  g = rho is one more surface of the union whose critical points are
   the candidates: its faces, its circles with inflated spheres, the lines of two walls, and the points of a wall
   with two spheres, of two walls with a sphere, of three walls. A crossing whose dry voxel lies inside walls
   (``g < 0``) goes to the one of them with the smallest ``g(p)`` when that is below the nearest sphere's
@@ -83,6 +84,9 @@ class WettedReference:
             ``face`` (between the samples face-1 and face), ``entry`` and ``exit`` (their spheres).
         thin_faces: Per axis a, thin intervals per ray and face, shape (n_u, n_v, n_a + 1).
         ray_crossings: Per axis a, fluid-to-dry crossings per ray (thin ones included), shape (n_u, n_v).
+        virtual: Per axis a, whether each ray's virtual samples just before and after the box are fluid, shape
+            (n_u, n_v, 2): the particles' and walls' counts on axis a sum to ``virtual[a][..., 0].sum() -
+            virtual[a][..., 1].sum()`` with both lamps on.
         counts: Signed per-particle per-axis counts, (N, 3) int64 (lamps that are off left out).
         hits: Crossings attributed per particle, (N,) int64 (lamps that are off left out).
         wall_counts: Signed counts per wall and axis, (W, 3) int64 (lamps that are off left out).
@@ -109,6 +113,7 @@ class WettedReference:
     thin: dict
     thin_faces: dict
     ray_crossings: dict
+    virtual: dict
     counts: np.ndarray
     hits: np.ndarray
     wall_counts: np.ndarray
@@ -315,6 +320,45 @@ def _padded(inside, planes, h, pad, thr):
         beyond[pad[0] : shape[0] - pad[0], pad[1] : shape[1] - pad[1], pad[2] : shape[2] - pad[2]] = False
         out[beyond] = _outside_ok(planes, idx[beyond], h, thr)
     return out
+
+
+def _walls_fluid(planes, x, rho):
+    """The virtual fluid beyond the box at points x (M, 3): within rho of the convex set of points with ``g >= rho``
+    for every wall, decided at its nearest point (x itself, a wall's face point, two walls' line point, three walls'
+    corner), which must keep rho from the other walls. Everywhere without walls."""
+    x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
+    m, nw = len(x), len(planes)
+    if nw == 0:
+        return np.ones(m, dtype=bool)
+    rho2 = rho * rho
+    g = _plane(planes, x)
+    out = np.all(g >= rho, axis=1)
+    n = planes[:, :3]
+    tags = np.arange(nw)
+
+    def valid(z, own):
+        gz = _plane(planes, z)
+        return np.all((gz >= rho) | np.isin(tags, own)[None, :], axis=1) & (_dot(x - z, x - z) <= rho2)
+
+    for w in range(nw):
+        z = x - n[w] * ((g[:, w] - rho) / _dot(n[w], n[w]))[:, None]
+        out |= valid(z, [w])
+    for w in range(nw):
+        for v in range(w + 1, nw):
+            n1, n2 = n[w], n[v]
+            a11, a12, a22 = _dot(n1, n1), _dot(n1, n2), _dot(n2, n2)
+            det = a11 * a22 - a12 * a12
+            if det > 0.0:
+                e1 = rho - g[:, w]
+                e2 = rho - g[:, v]
+                al = (e1 * a22 - e2 * a12) / det
+                be = (e2 * a11 - e1 * a12) / det
+                out |= valid((x + n1 * al[:, None]) + n2 * be[:, None], [w, v])
+            for u in range(v + 1, nw):
+                z, ok = _walls_corners(planes[w : w + 1], planes[v : v + 1], planes[u : u + 1], rho)
+                if ok[0]:
+                    out |= valid(np.broadcast_to(z, x.shape), [w, v, u])
+    return out & np.all(g >= 0.0, axis=1)
 
 
 def _wall_faces(x, planes, rho):
@@ -712,7 +756,7 @@ def _merge_thin(chords, fluid, n, h, a, exact, planes):
             if 0 <= m < n[a]:
                 ok &= bool(fluid[tuple(idx)])
             else:
-                ok &= bool(_outside_ok(planes, np.array(idx), h, 0.0))
+                ok &= bool(_walls_fluid(planes, _centres(np.array(idx), h), exact.rho)[0])
         if not ok:
             continue
         items.sort()
@@ -851,7 +895,7 @@ def wetted_reference(
             rescued += 1
 
     tol = 4.0 * EPS32 * ((float(np.abs(local).max()) if len(local) else 0.0) + (float(rv.max()) if len(rv) else 0.0))
-    crossings, thin, thin_faces, ray_crossings = {}, {}, {}, {}
+    crossings, thin, thin_faces, ray_crossings, virtual = {}, {}, {}, {}, {}
     counts = np.zeros((count, 3), dtype=np.int64)
     hits = np.zeros(count, dtype=np.int64)
     wall_counts = np.zeros((len(planes), 3), dtype=np.int64)
@@ -861,12 +905,13 @@ def wetted_reference(
         u, v = (a + 1) % 3, (a + 2) % 3
         f = np.pad(np.transpose(fluid, (u, v, a)), ((0, 0), (0, 0), (1, 1)), constant_values=True)
         if len(planes):
-            # The virtual samples just past both ends of every row: fluid on the fluid side of every wall.
+            # The virtual samples just past both ends of every row: the walls' own fluid.
             for end, m in ((0, -1), (-1, int(n[a]))):
                 idx = np.zeros((int(n[u]), int(n[v]), 3), dtype=np.int64)
                 idx[..., u], idx[..., v] = np.meshgrid(np.arange(n[u]), np.arange(n[v]), indexing="ij")
                 idx[..., a] = m
-                f[..., end] = _outside_ok(planes, idx, h, 0.0)
+                f[..., end] = _walls_fluid(planes, _centres(idx, h).reshape(-1, 3), rho).reshape(idx.shape[:2])
+        virtual[a] = np.stack([f[..., 0], f[..., -1]], axis=-1)
         before, after = f[..., :-1], f[..., 1:]
         iu, iv, face = np.nonzero(before != after)
         enters = ~after[iu, iv, face]
@@ -926,6 +971,7 @@ def wetted_reference(
         thin=thin,
         thin_faces=thin_faces,
         ray_crossings=ray_crossings,
+        virtual=virtual,
         counts=counts,
         hits=hits,
         wall_counts=wall_counts,
