@@ -198,19 +198,20 @@ def test_wetted_box_on_a_platen(device):
 
 
 def test_wetted_fluid_bounded_below_at_mid_height(device, rng):
-    """A fluid bounded below at mid-height: particles wholly below the wall carry nothing; most of those wholly
-    above are loaded; x and y still balance exactly."""
-    c, r = block_on_platen(rng)
-    z_w = 0.5 * (c[:, 2].min() + c[:, 2].max())
-    f = wl.lamp_forces(
-        c, r, P, surfaces="all", probe_radius=float(r.mean()), walls=[((0.0, 0.0, z_w), (0.0, 0.0, 1.0))], device=device
-    )
-    below = c[:, 2] + r < z_w
-    above = c[:, 2] - r > z_w
-    assert below.sum() > 20 and above.sum() > 20
-    assert (f[below] == 0).all()
-    assert np.abs(f[above]).sum(axis=1).astype(bool).sum() > 0.3 * above.sum()
-    assert f[:, 0].sum() == 0.0 and f[:, 1].sum() == 0.0 and f[:, 2].sum() < 0.0
+    """A fluid bounded below at mid-height (a jittered block and the 50 mm random box): particles wholly below the
+    wall carry nothing, also where a fillet's crossing lies nearer to them than to any particle above (a sphere
+    wholly inside a wall is part of it); most of those wholly above are loaded; x and y still balance exactly."""
+    box = scene_box_specimen((0.05, 0.05, 0.05), 0.005)
+    for c, r in (block_on_platen(rng), (box.centers, box.radii)):
+        z_w = 0.5 * (c[:, 2].min() + c[:, 2].max())
+        wall = [((0.0, 0.0, z_w), (0.0, 0.0, 1.0))]
+        f = wl.lamp_forces(c, r, P, surfaces="all", probe_radius=float(r.mean()), walls=wall, device=device)
+        below = c[:, 2] + r < z_w
+        above = c[:, 2] - r > z_w
+        assert below.sum() > 20 and above.sum() > 20
+        assert (f[below] == 0).all()
+        assert np.abs(f[above]).sum(axis=1).astype(bool).sum() > 0.3 * above.sum()
+        assert f[:, 0].sum() == 0.0 and f[:, 1].sum() == 0.0 and f[:, 2].sum() < 0.0
 
 
 def test_wetted_walls_leave_the_axis_they_do_not_cut_balanced(device, rng):

@@ -765,6 +765,7 @@ def wall_cases(rng):
             ("under the whole body", touching, tr, box, rho, [((0, 0, -1.5), up)]),
             ("a slab at mid-height", touching, tr, box, rho, [((0, 0, 0.25), up), ((0, 0, 0.875), (0, 0, -1))]),
             ("resting on a platen", [[0.125, 0.25, 0.5]], [0.5], box, rho, [((0, 0, 0), up)]),
+            ("buried just under a wall", touching, tr, box, rho, [((0, 0, 0.5625), up)]),
             ("small spheres on a wall", small, small_r, box, rho, [((0, 0, 0.3), (0.25, 0.5, 1))]),
             (
                 "an empty corner",
@@ -781,9 +782,9 @@ def wall_cases(rng):
 def test_walls_agree_with_reference_on_hard_cases(device, rng):
     """Kernels equal the reference with walls through spheres, a wall exactly on a voxel-centre plane (and its
     offset plane there), two walls meeting at an edge, three at a corner (with spheres and without: the fillets of
-    walls alone), a wall under the whole body, a slab at mid-height, a sphere resting on a platen, small spheres on a
-    tilted wall; and on every axis, particles and walls together take exactly the rows with one virtual end in the
-    fluid and the other in a wall."""
+    walls alone), a wall under the whole body, a slab at mid-height, a sphere resting on a platen, spheres buried just
+    under a wall (never owners), small spheres on a tilted wall; and on every axis, particles and walls together take
+    exactly the rows with one virtual end in the fluid and the other in a wall."""
     totals = np.zeros(4, dtype=np.int64)
     took = 0
     for label, centers, radii, grid, rho, walls in wall_cases(rng):
@@ -799,6 +800,8 @@ def test_walls_agree_with_reference_on_hard_cases(device, rng):
         np.testing.assert_array_equal(d.counts.sum(axis=0) + d.wall_counts.sum(axis=0), facing_rows(ref))
         totals += (d.uncertain, d.rescued, d.thin, np.abs(d.wall_counts).sum())
         took += int(label == "an empty corner" and rho > 0 and (d.wall_counts != 0).any(axis=0).all())
+        if label == "buried just under a wall":
+            assert d.hits[:3].sum() == 0 and d.hits[3] > 0
     assert np.all(totals > (500, 400, 20, 1000)), totals
     assert took == 3  # the corner's fillet, no sphere near, goes to the walls on every axis (none unattributed)
 

@@ -841,6 +841,18 @@ def sphere_distance(p: wp.vec3d, i: wp.int32, positions: wp.array[wp.vec3], radi
 
 
 @wp.func
+def buried(i: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], walls: LampWalls) -> wp.bool:
+    """Sphere i lies wholly inside a wall (``g(c) + r < 0``): part of the wall, never a crossing's owner. It cannot
+    hold the probe off (the wall holds it farther) nor make a thin chord between fluid samples (g is affine)."""
+    p = positions[i]
+    c = wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
+    for w in range(walls.n):
+        if plane_value(walls.frame[w], c) + wp.float64(radii[i]) < wp.float64(0.0):
+            return True
+    return False
+
+
+@wp.func
 def nearest_in_cube(
     p: wp.vec3d,
     reach: wp.float64,
@@ -849,9 +861,10 @@ def nearest_in_cube(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.int32:
-    """Among binned spheres with centres in the bins that the cube p +- reach touches: the smallest |p - c| - r,
-    ties to the lowest index; -1 if there are none."""
+    """Among binned spheres with centres in the bins that the cube p +- reach touches, less those buried in a wall:
+    the smallest |p - c| - r, ties to the lowest index; -1 if there are none."""
     lo = wp.vec3i(0)
     hi = wp.vec3i(0)
     for a in range(3):
@@ -867,8 +880,9 @@ def nearest_in_cube(
                 while i >= 0:
                     d = sphere_distance(p, i, positions, radii)
                     if d < best or (d == best and i < best_id):
-                        best = d
-                        best_id = i
+                        if walls.n == 0 or not buried(i, positions, radii, walls):
+                            best = d
+                            best_id = i
                     i = next_in_bin[i]
     return best_id
 
@@ -883,8 +897,10 @@ def nearest_sphere(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.int32:
-    """The sphere nearest to crossing point p of a lamp-a row (smallest |p - c| - r, ties to the lowest index).
+    """The sphere nearest to crossing point p of a lamp-a row (smallest |p - c| - r, ties to the lowest index; a
+    sphere buried in a wall is not one).
 
     First within one voxel edge: a sphere at distance d1 <= h from p has every sphere that could tie or beat it
     centred within h + r_max of p, all searched, so d1's sphere is the answer. Otherwise (a membrane spanning a
@@ -892,11 +908,11 @@ def nearest_sphere(
     """
     near = box.h[a]
     reach = (near + rmax) * wp.float64(1.000000001)
-    pid = nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box)
+    pid = nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box, walls)
     if pid >= 0:
         if sphere_distance(p, pid, positions, radii) <= near:
             return pid
-    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box)
+    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box, walls)
 
 
 @wp.func
@@ -938,7 +954,7 @@ def load_crossing(
         sign = -1
     if ((box.lamp_mask >> lamp) & 1) == 0:
         return
-    pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box)
+    pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box, walls)
     if walls.n > 0:
         ds = FAR
         if pid >= 0:

@@ -21,13 +21,14 @@ point. It restates the mode's definition and imports nothing from the modules it
   evaluated in float64 as ``((n0 x0 + n1 x1) + n2 x2) - d``): the probe centre keeps ``g >= rho`` (blocked where
   ``g < rho``), a voxel centre with ``g < 0`` is solid; beyond the box the lattice points with ``g >= rho`` for every
   wall are allowed and reached (all of them, whatever their connection), and the virtual samples within rho of
-  those points (spheres aside: the walls' own fluid; ``g >= 0`` for one wall) are fluid. The offset plane
-  g = rho is one more surface of the union whose critical points are
-  the candidates: its faces, its circles with inflated spheres, the lines of two walls, and the points of a wall
-  with two spheres, of two walls with a sphere, of three walls. A crossing whose dry voxel lies inside walls
-  (``g < 0``) goes to the one of them with the smallest ``g(p)`` when that is below the nearest sphere's
-  ``|p - c| - r`` or no sphere lies within the attribution bound; one with no sphere within the bound goes to the
-  nearest wall (smallest g(p)); only walls whose normal has a component along the row's axis take crossings.
+  those points (spheres aside: the walls' own fluid; ``g >= 0`` for one wall) are fluid. The offset plane g = rho
+  is one more surface of the union whose critical points are the candidates: its faces, its circles with inflated
+  spheres, the lines of two walls, and the points of a wall with two spheres, of two walls with a sphere, of three
+  walls. A sphere wholly inside a wall (``g(c) + r < 0``) is part of the wall: never an owner. A crossing whose dry
+  voxel lies inside walls (``g < 0``) goes to the one of them with the smallest ``g(p)`` when that is below the
+  nearest sphere's ``|p - c| - r`` or no sphere lies within the attribution bound; one with no sphere within the
+  bound goes to the nearest wall (smallest g(p)); only walls whose normal has a component along the row's axis
+  take crossings.
 
 Each decision is the same float64 expression the kernels evaluate, so on inputs that float32 holds exactly (frame
 coordinates and radii) the two agree bitwise. Where the kernels' float32 inputs could tip a decision (a voxel
@@ -919,7 +920,12 @@ def wetted_reference(
         pts[:, a] = face * h[a]
         pts[:, u] = (iu + 0.5) * h[u]
         pts[:, v] = (iv + 0.5) * h[v]
-        owner, dist, tie = _nearest(pts, local, rv, ids, tol)
+        if len(planes):
+            # A sphere wholly inside a wall (g(c) + r < 0) is part of it: never an owner.
+            free = ~np.any(_plane(planes, local) + rv[:, None] < 0.0, axis=1)
+            owner, dist, tie = _nearest(pts, local[free], rv[free], ids[free], tol)
+        else:
+            owner, dist, tie = _nearest(pts, local, rv, ids, tol)
         wall = np.full(len(face), -1, dtype=np.int64)
         if len(planes):
             # No sphere within the attribution bound: none (a crossing there is a wall's).
