@@ -98,22 +98,23 @@ def main():
         ("top only: fluid above the top layer's centres", [((0.0, 0.0, z_near_top), up)], "all", z_near_top),
     ]
     rows = []
-    for label, walls, lamps, cut in cases:
-        for mode in ("wetted", "memo"):
-            res, f = run(c, r, mode=mode, walls=walls, lamps=lamps, rho=rho, device=device)
-            res.update(case=label, mode=mode)
-            res["fz_over_minus_P_footprint"] = res["force"][2] / (-P * area)
-            res["fz_over_minus_P_top"] = res["force"][2] / (-P * 0.05 * 0.05)
-            if cut is not None:
-                below = c[:, 2] + r < cut
-                above = c[:, 2] - r > cut
-                res["wall_height"] = cut
-                res["wholly_below"] = int(below.sum())
-                res["wholly_below_loaded"] = int(np.abs(f[below]).sum(axis=1).astype(bool).sum())
-                res["wholly_above"] = int(above.sum())
-                res["wholly_above_loaded"] = int(np.abs(f[above]).sum(axis=1).astype(bool).sum())
-                res["fz_particles_above_wall"] = float(f[c[:, 2] > cut, 2].sum())
-            rows.append(res)
+    runs = [(case, mode, 1.0) for case in cases for mode in ("wetted", "memo")]
+    runs += [(case, "wetted", k) for k in (0.5, 2.0) for case in cases[:2]]
+    for (label, walls, lamps, cut), mode, k in runs:
+        res, f = run(c, r, mode=mode, walls=walls, lamps=lamps, rho=k * rho, device=device)
+        res.update(case=label, mode=mode, rho_over_mean_radius=k if mode == "wetted" else None)
+        res["fz_over_minus_P_footprint"] = res["force"][2] / (-P * area)
+        res["fz_over_minus_P_top"] = res["force"][2] / (-P * 0.05 * 0.05)
+        if cut is not None:
+            below = c[:, 2] + r < cut
+            above = c[:, 2] - r > cut
+            res["wall_height"] = cut
+            res["wholly_below"] = int(below.sum())
+            res["wholly_below_loaded"] = int(np.abs(f[below]).sum(axis=1).astype(bool).sum())
+            res["wholly_above"] = int(above.sum())
+            res["wholly_above_loaded"] = int(np.abs(f[above]).sum(axis=1).astype(bool).sum())
+            res["fz_particles_above_wall"] = float(f[c[:, 2] > cut, 2].sum())
+        rows.append(res)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     result = dict(
         device=str(device),
@@ -134,15 +135,18 @@ def main():
         f"footprint (union of the projected disks): {a4000 * 1e6:.1f} mm^2 (4,000 px; 2,000 px: "
         f"{a2000 * 1e6:.1f}); P A = {P * area:.1f} N; top face 50 x 50 mm: P A = {P * 0.0025:.1f} N\n"
     )
-    print("| case | mode | Fx [N] | Fy [N] | Fz [N] | Fz / (-P footprint) | wall Fz [N] | loaded | update [s] |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print(
+        "| case | mode | rho / r | Fx [N] | Fy [N] | Fz [N] | Fz / (-P footprint) | wall Fz [N] | loaded | update [s] |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for res in rows:
         wall = res.get("wall_forces")
         wall_z = f"{sum(w[2] for w in wall):.1f}" if wall else ""
         fx, fy, fz = res["force"]
         ratio = res["fz_over_minus_P_footprint"]
         print(
-            f"| {res['case']} | {res['mode']} | {fx:.3g} | {fy:.3g} | {fz:.1f} | {ratio:.4f} "
+            f"| {res['case']} | {res['mode']} | {res['rho_over_mean_radius'] or ''} | {fx:.3g} | {fy:.3g} | {fz:.1f} "
+            f"| {ratio:.4f} "
             f"| {wall_z} | {res['loaded']} | {res['seconds']:.3f} |"
         )
     print()

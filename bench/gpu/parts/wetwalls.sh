@@ -24,8 +24,9 @@ python3 - "$OUT/wetwalls.json" bench/results/cpu-dev-2026-11-25-walls.json <<'PY
 import json, sys
 new, cpu = (json.load(open(p)) for p in sys.argv[1:3])
 print(f"device {new['device']} {new['name']}, commit {new['commit']} (CPU figures: commit {cpu['commit']})")
-print("| case | mode | Fz / (-P footprint) | update [ms] | forces = CPU's |")
+print("| case | mode | rho / r | Fz / (-P footprint) | update [ms] | forces = CPU's |")
 for a, b in zip(new["rows"], cpu["rows"]):
     same = a["force"] == b["force"] and a.get("wall_forces") == b.get("wall_forces")
-    print(f"| {a['case']} | {a['mode']} | {a['fz_over_minus_P_footprint']:.4f} | {1e3 * a['seconds']:.2f} | {same} |")
+    k = a.get("rho_over_mean_radius") or ""
+    print(f"| {a['case']} | {a['mode']} | {k} | {a['fz_over_minus_P_footprint']:.4f} | {1e3 * a['seconds']:.2f} | {same} |")
 PY
