@@ -21,6 +21,12 @@ Pipeline of one update (each step's decisions are exact, so CPU and CUDA agree b
 6. ``wet_thin``: a sphere chord that holds no voxel centre, between two fluid samples of a row, is a dry interval
    the samples cannot see; overlapping ones (or ones whose gap is dry) merge, and each merged interval loads an
    entry and an exit crossing.
+
+Walls (``LampWalls``, planes in the frame; none: every result as without them): ``wet_rasterize_walls`` adds them to
+the blocked (``g < rho``) and solid (``g < 0``) maps, the outside is reached only where it keeps rho from every wall
+(runs along x, ``wall_row_run``), the virtual samples past the box are the walls' own fluid (``walls_fluid``), the
+exact test has the offset planes among its candidates (``wall_search``), and a crossing whose dry voxel lies in a
+wall may go to it (``load_crossing``, ``wall_counts``).
 """
 
 import warp as wp
