@@ -8,7 +8,8 @@ from helpers import device_arrays, polydisperse_scene
 import warp_lamp as wl
 from warp_lamp.lamp import lamp_update
 from warp_lamp.reference import lamp_reference
-from warp_lamp.scenes import scene_lattice_box
+from warp_lamp.reference.wetted import frame_walls
+from warp_lamp.scenes import scene_box_specimen, scene_lattice_box
 
 P = 2e6
 
@@ -151,3 +152,128 @@ def test_walls_in_a_captured_graph(device, rng):
     out = wp.zeros(len(r), dtype=wp.vec3, device=device)
     eager.apply(pos, rad, out, pressure)
     np.testing.assert_array_equal(replay, out.numpy())
+
+
+# --- the wetted mode (surfaces="all") -------------------------------------------------------------------------
+
+
+def footprint_area(centers, radii, pixels=2000):
+    """The body's footprint on a platen normal to z [m^2]: the area of the union of the particles' disks projected
+    along z, from a raster of ``pixels`` cells along the longer side (pixel centres inside a disk)."""
+    lo = (centers[:, :2] - radii[:, None]).min(axis=0)
+    hi = (centers[:, :2] + radii[:, None]).max(axis=0)
+    step = float((hi - lo).max()) / pixels
+    xs = lo[0] + (np.arange(int(np.ceil((hi[0] - lo[0]) / step))) + 0.5) * step
+    ys = lo[1] + (np.arange(int(np.ceil((hi[1] - lo[1]) / step))) + 0.5) * step
+    cover = np.zeros((len(xs), len(ys)), dtype=bool)
+    for (cx, cy), r in zip(centers[:, :2], radii, strict=True):
+        i0, i1 = np.searchsorted(xs, [cx - r, cx + r])
+        j0, j1 = np.searchsorted(ys, [cy - r, cy + r])
+        dx, dy = xs[i0:i1, None] - cx, ys[None, j0:j1] - cy
+        cover[i0:i1, j0:j1] |= dx * dx + dy * dy < r * r
+    return float(cover.sum()) * step * step
+
+
+def test_wetted_box_on_a_platen(device):
+    """The issue's random 50 mm box resting on a platen at 2 MPa, wetted mode with rho = the mean radius: the body's
+    Fx and Fy are exactly 0, its Fz is within 3% of -P times its footprint, and on z the body and the platen together
+    take exactly -P times the whole window (every ray's top end faces the fluid, its bottom end is in the platen)."""
+    scene = scene_box_specimen((0.05, 0.05, 0.05), 0.005)
+    c, r = scene.centers, scene.radii
+    rho = float(r.mean())
+    platen = [((0.0, 0.0, float((c[:, 2] - r).min())), (0.0, 0.0, 1.0))]
+    lamp = lamp_update(c, r, surfaces="all", probe_radius=rho, walls=platen, device=device)
+    d = lamp.diagnostics(c, P)
+    assert d.force[0] == 0.0 and d.force[1] == 0.0
+    ratio = d.force[2] / (-P * footprint_area(c, r))
+    assert abs(ratio - 1.0) < 0.03, ratio
+    window = int(lamp.grid.counts[2].prod())
+    np.testing.assert_array_equal(d.counts.sum(axis=0) + d.wall_counts.sum(axis=0), [0, 0, -window])
+    assert (d.wall_counts[:, :2] == 0).all() and d.unattributed == 0
+    total = d.force + d.wall_forces.sum(axis=0)
+    assert total[2] == pytest.approx(-P * window * lamp.grid.cell_area[2], rel=1e-7)
+    # Without the platen (the README's old recipe: the -z lamp off) the side faces' downward pushes overload z.
+    no_wall = wl.lamp_forces(c, r, P, surfaces="all", probe_radius=rho, lamps=["-x", "+x", "-y", "+y", "+z"])
+    assert no_wall[:, 2].sum() / (-P * footprint_area(c, r)) > 1.15
+
+
+def test_wetted_fluid_bounded_below_at_mid_height(device, rng):
+    """A fluid bounded below at mid-height (a jittered block and the 50 mm random box): particles wholly below the
+    wall carry nothing, also where a fillet's crossing lies nearer to them than to any particle above (a sphere
+    wholly inside a wall is part of it); most of those wholly above are loaded; x and y still balance exactly."""
+    box = scene_box_specimen((0.05, 0.05, 0.05), 0.005)
+    for c, r in (block_on_platen(rng), (box.centers, box.radii)):
+        z_w = 0.5 * (c[:, 2].min() + c[:, 2].max())
+        wall = [((0.0, 0.0, z_w), (0.0, 0.0, 1.0))]
+        f = wl.lamp_forces(c, r, P, surfaces="all", probe_radius=float(r.mean()), walls=wall, device=device)
+        below = c[:, 2] + r < z_w
+        above = c[:, 2] - r > z_w
+        assert below.sum() > 20 and above.sum() > 20
+        assert (f[below] == 0).all()
+        assert np.abs(f[above]).sum(axis=1).astype(bool).sum() > 0.3 * above.sum()
+        assert f[:, 0].sum() == 0.0 and f[:, 1].sum() == 0.0 and f[:, 2].sum() < 0.0
+
+
+def test_wetted_walls_leave_the_axis_they_do_not_cut_balanced(device, rng):
+    """A platen (normal z) and a side wall (normal x) in the wetted mode: on y, which neither cuts, the particles'
+    counts sum to exactly zero and the walls take nothing; on x and z, particles and walls together take exactly the
+    rays whose far end faces the fluid (their near end is in a wall)."""
+    c, r = block_on_platen(rng)
+    rho = float(r.mean())
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4, probe_radius=rho)
+    walls = [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), (((c[:, 0] - r).min() - 0.2, 0.0, 0.0), (1.0, 0.0, 0.0))]
+    lamp = lamp_update(c, r, grid=grid, surfaces="all", probe_radius=rho, walls=walls, device=device)
+    d = lamp.diagnostics()
+    counts, by_wall = d.counts.sum(axis=0), d.wall_counts
+    assert counts[1] == 0 and (by_wall[:, 1] == 0).all() and d.unattributed == 0
+    assert (by_wall[0] != 0).tolist() == [False, False, True] and (by_wall[1] != 0).tolist() == [True, False, False]
+    # The far ends: x rows end in the fluid where they pass above the platen, z rows where they pass the side wall.
+    planes = frame_walls(wl.validate.check_walls(walls), grid)
+    h = grid.box_cell
+    n = grid.box_counts
+    zs = (np.arange(n[2]) + 0.5) * h[2]
+    xs = (np.arange(n[0]) + 0.5) * h[0]
+    fluid_x_rows = int(n[1]) * int((zs - planes[0, 3] >= 0.0).sum())
+    fluid_z_rows = int(n[1]) * int((xs - planes[1, 3] >= 0.0).sum())
+    assert counts[0] + by_wall[:, 0].sum() == -fluid_x_rows
+    assert counts[2] + by_wall[:, 2].sum() == -fluid_z_rows
+
+
+def test_wetted_walls_on_the_device_in_a_captured_graph(device, rng):
+    """ShiningLamp(surfaces='all') on world positions places the walls on the device: its forces equal those of
+    host positions placed in float64 (an axis-aligned platen, exact in float32), and a graph replay after moving the
+    platen equals an eager lamp built with it there."""
+    c, r = block_on_platen(rng, n=4)
+    rho = float(r.mean())
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4, probe_radius=rho)
+    platen = [((0.0, 0.0, -0.25), (0.0, 0.0, 1.0))]
+    host = wl.lamp_forces(c, r, P, grid=grid, surfaces="all", probe_radius=rho, walls=platen, device=device)
+    lamp = wl.ShiningLamp(grid, surfaces="all", probe_radius=rho, walls=platen, device=device)
+    pos, rad = device_arrays(c, r, device)
+    lamp.update(pos, rad)
+    np.testing.assert_array_equal(lamp.forces_numpy(P), host)
+    forces = wp.zeros(len(r), dtype=wp.vec3, device=device)
+    pressure = wp.array([P], dtype=wp.float32, device=device)
+    with wp.ScopedCapture(device=device) as capture:
+        forces.zero_()
+        lamp.apply(pos, rad, forces, pressure)
+    lamp.walls.assign(np.array([[0.0, 0.0, 1.0, 1.75]], dtype=np.float32))
+    wp.capture_launch(capture.graph)
+    replay = forces.numpy()
+    walls_replay = lamp.wall_forces_numpy(P)
+    eager = wl.ShiningLamp(grid, surfaces="all", probe_radius=rho, walls=[((0, 0, 1.75), (0, 0, 1))], device=device)
+    out = wp.zeros(len(r), dtype=wp.vec3, device=device)
+    eager.apply(pos, rad, out, pressure)
+    np.testing.assert_array_equal(replay, out.numpy())
+    np.testing.assert_array_equal(walls_replay, eager.wall_forces_numpy(P))
+    assert (replay[c[:, 2] + r < 1.75] == 0).all() and np.abs(replay).sum() > 0
+
+
+def test_walls_with_the_area_criterion_are_refused_with_the_reason():
+    """The area criterion with walls is refused naming ``walls`` and why (its per-cell payout balances both
+    lamps); the wetted mode takes them."""
+    with pytest.raises(ValueError, match=r"walls: .*not with criterion='area': its per-cell payout balances"):
+        wl.ShiningLamp(wl.LampGrid([0, 0, 0], [1, 1, 1], 0.25), criterion="area", walls=[((0, 0, 0), (0, 0, 1))])
+    wl.ShiningLamp(
+        wl.LampGrid([0, 0, 0], [1, 1, 1], 0.25), surfaces="all", probe_radius=0.1, walls=[((0, 0, 0), (0, 0, 1))]
+    )

@@ -7,6 +7,7 @@ from helpers import DEVICES
 
 import warp_lamp as wl
 from warp_lamp.bench_wetted import lone_sphere_convergence
+from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.lamp import pressure_area
 from warp_lamp.reference.wetted import dilation_table as reference_table
 from warp_lamp.reference.wetted import wetted_reference
@@ -56,7 +57,8 @@ def exact_scene(rng, n=150, extent=5.0, rmin=0.2, rmax=0.6, *, h=0.2, margin=1.5
 
 
 def assert_matches(surface, ref, *, lamps_mask=0b111111):
-    """Every crossing's owner, the thin chords per face, the maps and the counts equal the reference's."""
+    """Every crossing's owner (sphere or wall), the thin chords per face, the maps and the counts (particles' and
+    walls') equal the reference's."""
     d = surface.diagnostics()
     np.testing.assert_array_equal(d.allowed, ref.allowed)
     np.testing.assert_array_equal(d.reachable, ref.reachable)
@@ -67,11 +69,15 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
         cr = ref.crossings[a]
         loaded = np.where(cr["enters"], lamps_mask >> (2 * a) & 1, lamps_mask >> (2 * a + 1) & 1).astype(bool)
         got = d.owners[a][cr["u"], cr["v"], cr["face"]]
-        np.testing.assert_array_equal(got[loaded], cr["owner"][loaded], err_msg=f"axis {a}")
+        want = np.where(cr["wall"] >= 0, -3, cr["owner"])
+        np.testing.assert_array_equal(got[loaded], want[loaded], err_msg=f"axis {a}")
+        walls = d.wall_owners[a][cr["u"], cr["v"], cr["face"]]
+        np.testing.assert_array_equal(walls[loaded], cr["wall"][loaded], err_msg=f"axis {a}")
         assert (d.owners[a] != -2).sum() == loaded.sum()
         np.testing.assert_array_equal(d.thin_faces[a], ref.thin_faces[a], err_msg=f"axis {a}")
     np.testing.assert_array_equal(d.counts, ref.counts)
     np.testing.assert_array_equal(d.hits, ref.hits)
+    np.testing.assert_array_equal(d.wall_counts, ref.wall_counts)
     assert (d.invalid, d.outside, d.tight, d.unattributed) == (ref.invalid, ref.outside, ref.tight, 0)
     thin = sum(len(ref.thin[a]["u"]) for a in range(3))
     assert (d.uncertain, d.rescued, d.thin) == (ref.uncertain, ref.rescued, thin)
@@ -698,6 +704,137 @@ def test_capture_and_replay_equal_eager(device, rng):
         assert replay.rescued > 0 and replay.thin > 0
 
 
+# --- walls that bound the fluid (issue 19, part 2) -------------------------------------------------------------
+
+#: Two tilted walls that cut exact_scene's box (each cuts every axis).
+TILTED = [((2.5, 2.5, 1.5), (0.2, -0.1, 1.0)), ((4.0, 1.0, 2.0), (-1.0, 0.3, 0.2))]
+
+
+def walls_reference(centers, radii, grid, rho, walls, **kw):
+    return wetted_reference(centers, radii, grid, probe_radius=rho, walls=wl.validate.check_walls(walls), **kw)
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.1, 0.4])
+def test_walls_match_reference_on_random_scenes(device, rng, rho):
+    """Two tilted walls cutting a random scene: the maps, the exact test's verdicts, each crossing's sphere or wall,
+    the thin chords and the particles' and walls' counts equal the float64 reference's (cubic and anisotropic
+    voxels), along every path of the kernels; the walls' planes in the frame are the reference's."""
+    for h in (0.2, (0.17, 0.23, 0.2)):
+        centers, radii, grid = exact_scene(rng, n=120, h=h)
+        surface = wetted_solve(
+            centers, radii, probe_radius=rho, grid=grid, keep_owners=True, device=device, walls=TILTED
+        )
+        ref = walls_reference(centers, radii, grid, rho, TILTED)
+        np.testing.assert_array_equal(surface.walls_frame.numpy(), ref.walls)
+        d = assert_matches(surface, ref)
+        assert (d.wall_counts != 0).all()  # both walls take crossings on every axis
+        assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
+        free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
+        assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
+    for slices, bits, near, prune in ((3, 8, 0, 0), (8, 1, 2, 0), (1, 32, 64, 65)):
+        surface._slices, surface._bits = slices, bits
+        surface._box.near_list, surface._box.prune_from = near, prune
+        surface.update(*device_arrays(centers - grid.origin, radii, device))
+        assert_matches(surface, ref)
+
+
+def wall_cases(rng):
+    """(label, centres, radii, grid, rho, walls) of the hard cases with walls; frame coordinates and radii dyadic."""
+    h = 0.25
+    box = wl.LampGrid([-2.0] * 3, [3.0] * 3, h)
+    touching = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.75, 0.0], [0.5, 0.25, 0.75]]
+    tr = [0.5, 0.5, 0.4, 0.3]
+    up = (0.0, 0.0, 1.0)
+    small = np.round(rng.uniform(-0.5, 1.5, (40, 3)) * 256) / 256
+    small_r = np.round(rng.uniform(0.05, 0.15, 40) * 256) / 256
+    cases = []
+    for rho in (0.0, 0.0625, 0.25, 0.5):
+        cases += [
+            ("through spheres", touching, tr, box, rho, [((0, 0, 0.1), up), ((0.3, 0, 0), (1.0, 0.5, 0.25))]),
+            ("on a voxel centre plane", touching, tr, box, rho, [((0, 0, 0.125), up)]),
+            ("offset plane on voxel centres", touching, tr, box, rho, [((0, 0, 0.125 - rho), up)]),
+            ("edge", touching, tr, box, rho, [((0, 0, -0.4), up), ((-0.6, 0, 0), (1, 0, 0))]),
+            (
+                "tilted edges and a corner",
+                touching,
+                tr,
+                box,
+                rho,
+                [((0, 0, -0.45), (1, 0, 1)), ((0, -0.55, 0), (0, 1, 1)), ((-0.6, 0, 0), (1, 1, 0.5))],
+            ),
+            ("under the whole body", touching, tr, box, rho, [((0, 0, -1.5), up)]),
+            ("a slab at mid-height", touching, tr, box, rho, [((0, 0, 0.25), up), ((0, 0, 0.875), (0, 0, -1))]),
+            ("resting on a platen", [[0.125, 0.25, 0.5]], [0.5], box, rho, [((0, 0, 0), up)]),
+            ("buried just under a wall", touching, tr, box, rho, [((0, 0, 0.5625), up)]),
+            ("small spheres on a wall", small, small_r, box, rho, [((0, 0, 0.3), (0.25, 0.5, 1))]),
+            (
+                "an empty corner",
+                [[2.0, 2.0, 2.0]],
+                [0.125],
+                box,
+                rho,
+                [((-1, 0, 0), (1, 0, 0)), ((0, -1, 0), (0, 1, 0)), ((0, 0, -1), (0.5, 0.25, 1))],
+            ),
+        ]
+    return cases
+
+
+def test_walls_agree_with_reference_on_hard_cases(device, rng):
+    """Kernels equal the reference with walls through spheres, a wall exactly on a voxel-centre plane (and its
+    offset plane there), two walls meeting at an edge, three at a corner (with spheres and without: the fillets of
+    walls alone), a wall under the whole body, a slab at mid-height, a sphere resting on a platen, spheres buried just
+    under a wall (never owners), small spheres on a tilted wall; and on every axis, particles and walls together take
+    exactly the rows with one virtual end in the fluid and the other in a wall."""
+    totals = np.zeros(4, dtype=np.int64)
+    took = 0
+    for label, centers, radii, grid, rho, walls in wall_cases(rng):
+        centers, radii = np.asarray(centers, dtype=np.float64), np.asarray(radii, dtype=np.float64)
+        surface = wetted_solve(
+            centers, radii, probe_radius=rho, grid=grid, keep_owners=True, device=device, walls=walls
+        )
+        ref = walls_reference(centers, radii, grid, rho, walls)
+        try:
+            d = assert_matches(surface, ref)
+        except AssertionError as err:
+            raise AssertionError(f"{label}, rho = {rho}") from err
+        np.testing.assert_array_equal(d.counts.sum(axis=0) + d.wall_counts.sum(axis=0), facing_rows(ref))
+        totals += (d.uncertain, d.rescued, d.thin, np.abs(d.wall_counts).sum())
+        took += int(label == "an empty corner" and rho > 0 and (d.wall_counts != 0).any(axis=0).all())
+        if label == "buried just under a wall":
+            assert d.hits[:3].sum() == 0 and d.hits[3] > 0
+    assert np.all(totals > (500, 400, 20, 1000)), totals
+    assert took == 3  # the corner's fillet, no sphere near, goes to the walls on every axis (none unattributed)
+
+
+def facing_rows(ref):
+    """Per axis, the rows whose virtual sample before the box is fluid less those whose sample after it is (the
+    reference's virtual fluid): what particles and walls together take, with both lamps on."""
+    return np.array([int(ref.virtual[a][..., 0].sum()) - int(ref.virtual[a][..., 1].sum()) for a in range(3)])
+
+
+def test_walls_placed_on_the_device_and_bad_views(device, rng):
+    """update() reads the walls the caller placed (a LampWalls view, as ShiningLamp passes it): the surface's own
+    static planes give the same answer as a view of them, moving the view's plane changes it, and a view with another
+    wall count is refused naming ``walls``."""
+    centers, radii, grid = exact_scene(rng, n=80)
+    surface = wetted_solve(centers, radii, probe_radius=0.2, grid=grid, device=device, walls=TILTED[:1])
+    first = surface.diagnostics()
+    first.counts = first.counts.copy()  # on the CPU a view of the device array, which the next update overwrites
+    view = LampWalls()
+    view.frame = wp.array(surface.walls_frame.numpy(), dtype=wp.vec4, device=device)
+    view.n = 1
+    pos, rad = device_arrays(centers - grid.origin, radii, device)
+    surface.update(pos, rad, walls=view)
+    np.testing.assert_array_equal(surface.counts_numpy(), first.counts)
+    np.testing.assert_array_equal(surface.wall_counts_numpy(), first.wall_counts)
+    view.frame.assign(surface.walls_frame.numpy() + np.array([[0, 0, 0, 0.5]], dtype=np.float32))
+    surface.update(pos, rad, walls=view)
+    assert (surface.counts_numpy() != first.counts).any()
+    view.n = 0
+    with pytest.raises(ValueError, match="walls: the surface was built for 1 walls"):
+        surface.update(pos, rad, walls=view)
+
+
 @pytest.mark.skipif(len(DEVICES) < 2, reason="needs a CUDA device")
 def test_cpu_and_cuda_bitwise_equal(rng):
     """Maps, the exact test's verdicts, per-face owners, thin chords and counts on CUDA are bitwise those of the
@@ -720,3 +857,26 @@ def test_cpu_and_cuda_bitwise_equal(rng):
             for a in range(3):
                 np.testing.assert_array_equal(dc.owners[a], dg.owners[a])
                 np.testing.assert_array_equal(dc.thin_faces[a], dg.thin_faces[a])
+
+
+@pytest.mark.skipif(len(DEVICES) < 2, reason="needs a CUDA device")
+def test_walls_cpu_and_cuda_bitwise_equal():
+    """With a tilted platen and a side wall: maps, owners (spheres and walls), thin chords and the particles' and
+    walls' counts on CUDA are bitwise those of the CPU."""
+    scene = scene_slot_block((14, 14, 10), width=4, depth=4)
+    c, r = scene.centers, scene.radii
+    walls = [((0.0, 0.0, float((c[:, 2] - r).min()) + 0.3), (0.05, -0.1, 1.0)), ((1.7, 0.0, 0.0), (1.0, 0.2, 0.0))]
+    for rho in (0.1, 0.45):
+        cpu = wetted_solve(c, r, probe_radius=rho, keep_owners=True, device="cpu", walls=walls).diagnostics()
+        assert (cpu.wall_counts != 0).any()
+        for dev in DEVICES[1:]:
+            gpu = wetted_solve(c, r, probe_radius=rho, keep_owners=True, device=dev, walls=walls).diagnostics()
+            np.testing.assert_array_equal(cpu.fluid, gpu.fluid)
+            np.testing.assert_array_equal(cpu.band, gpu.band)
+            np.testing.assert_array_equal(cpu.counts, gpu.counts)
+            np.testing.assert_array_equal(cpu.wall_counts, gpu.wall_counts)
+            assert (cpu.uncertain, cpu.rescued, cpu.thin) == (gpu.uncertain, gpu.rescued, gpu.thin)
+            for a in range(3):
+                np.testing.assert_array_equal(cpu.owners[a], gpu.owners[a])
+                np.testing.assert_array_equal(cpu.wall_owners[a], gpu.wall_owners[a])
+                np.testing.assert_array_equal(cpu.thin_faces[a], gpu.thin_faces[a])

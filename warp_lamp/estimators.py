@@ -497,8 +497,11 @@ class WettedCrossings(Estimator):
             max_rounds=max_rounds,
             device=self.device,
             max_bytes=max_bytes,
+            walls=frame.wall_planes,
         )
         self.nbytes = self.surface.nbytes
+        #: Signed counts per wall and axis (3 per wall), as the particles': the crossings each wall took.
+        self.wall_counts = self.surface.wall_counts
         self._frame_positions = wp.zeros(0, dtype=wp.vec3, device=self.device)
 
     def reserve(self, n: int) -> None:
@@ -528,7 +531,9 @@ class WettedCrossings(Estimator):
                 device=self.device,
             )
             positions = self._frame_positions[: self.n]
-        self.surface.update(positions, inp.particles.radii, inp.active)
+        # The walls as the frame placed them for this update (on the device for world positions).
+        walls = self.frame.walls_view(inp.in_frame)
+        self.surface.update(positions, inp.particles.radii, inp.active, walls=walls)
 
     def diagnostics(self):
         """The wetted surface's :class:`~warp_lamp.wetted.WettedDiagnostics`."""

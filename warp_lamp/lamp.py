@@ -168,8 +168,12 @@ class LampOptions:
         elif probe_radius is not None:
             raise ValueError("probe_radius: only with surfaces='all'")
         walls = check_walls(walls)
-        if len(walls) and (area or surfaces == "all"):
-            raise ValueError("walls: only with criteria 0 and 1 for now")
+        if len(walls) and area:
+            raise ValueError(
+                "walls: only with criteria 0 and 1 (surfaces='first' or 'all'), not with criterion='area': its "
+                "per-cell payout balances the two lamps of a cell against each other, and a wall that stops the rays "
+                "of one lamp but not the other's would leave that payout unbalanced"
+            )
         return cls(
             criterion=criterion,
             lamps=lamps,
@@ -325,7 +329,10 @@ class ShiningLamp:
                 ray that starts inside a wall lights nothing; a ray stops where it enters a wall, and the wall
                 takes the reaction when no sphere comes first (:meth:`diagnostics` ``wall_forces``). On an axis
                 no wall cuts, the forces still sum to zero; on one a wall cuts, the body's and the walls' forces
-                sum to P times the lamp window that faces the fluid. The planes live on the device in
+                sum to P times the lamp window that faces the fluid. With ``surfaces="all"`` the probe keeps rho
+                from every wall and the fluid beyond the box lies on the fluid side of every wall: nothing on a
+                wall's side is loaded, and a crossing goes to a wall when the wall is nearer than every sphere
+                (ties to the sphere). Not with ``criterion="area"``. The planes live on the device in
                 :attr:`walls` (one ``vec4`` (n, d) each, fluid where n . x > d), which a simulator may overwrite
                 between replays.
             tolerance: Ask for accuracy instead of settings: the largest acceptable RMS per-particle force error,

@@ -94,6 +94,8 @@ class LampFrame:
         walls = np.zeros((0, 4)) if walls is None else np.asarray(walls, dtype=np.float64)
         #: Walls that bound the fluid.
         self.n_walls = len(walls)
+        #: Their planes in world coordinates, (W, 4) float64, as ``check_walls`` gave them.
+        self.wall_planes = walls
         #: The walls' planes in world coordinates, (n, d) per wall with the fluid where n . x > d: one ``vec4`` each
         #: on the device (a simulator may overwrite them between replays, e.g. to move a platen).
         self.walls = wp.array(walls.astype(np.float32).reshape(-1, 4), dtype=wp.vec4, device=device)

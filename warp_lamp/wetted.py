@@ -27,6 +27,14 @@ through the channels between spheres (limitation 2). This mode loads the boundar
   ``|p - c_i| - r_i`` in float64, ties to the lowest index (never farther than :func:`attribution_bound`); a thin
   interval's entry to the sphere whose chord starts it, its exit to the one whose chord reaches furthest.
 
+- **Walls** (issue 19, part 2; planes with the fluid where ``g = n . x - d > 0``): the probe centre keeps
+  ``g >= rho`` from every wall, a voxel centre with ``g < 0`` is solid, beyond the box only the points that keep rho
+  from every wall are reached and only those within rho of them are fluid (the walls' own fluid: ``g >= 0`` for one
+  wall). The offset planes are more candidates of the exact test. A crossing whose dry voxel lies inside a wall goes
+  to that wall when it is nearer than every sphere (``g(p)`` against ``|p - c| - r``, ties to the sphere); a sphere
+  wholly inside a wall is part of it. Per axis, particles and walls together take exactly the rays with one end in
+  the fluid and the other in a wall; on an axis no wall cuts, the particles' counts still sum to zero.
+
 A lone sphere, or spheres the probe can go around, thus take on each low lamp exactly the cells criterion 1 gives
 them, for every rho >= 0 (bench/experiments/WETTED.md). :class:`WettedSurface` runs the mode on the device,
 capture-safe; ``ShiningLamp(grid, surfaces="all", probe_radius=rho)`` and :func:`warp_lamp.lamp_forces` use it;
@@ -43,11 +51,13 @@ import warp as wp
 from warp_lamp.frames import pressure_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import wetted as K
+from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
     LAMPS,
     check_budget,
     check_particle_arrays,
+    check_walls,
     check_warp_array,
     lamp_mask,
 )
@@ -71,6 +81,8 @@ BYTES_PER_PARTICLE = 36
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
 DEFAULT_MAX_ROUNDS = 200
+#: Device bytes per wall: its plane in the frame (one vec4) and its signed counts (3 int64).
+BYTES_PER_WALL = 40
 
 
 def check_probe_radius(probe_radius) -> float:
@@ -222,6 +234,9 @@ def _layout(grid: LampGrid, rho: float) -> dict:
         bins = np.maximum(np.ceil(size / edge), 1).astype(np.int64)
     # The two dilations share the planes; the band's table is the wider.
     planes = max(table.shape[1], table_band.shape[1])
+    # Wall runs along x are walked exactly this far past the box: beyond every index a kernel asks about (a word's
+    # padding, a dilation's reach, a candidate's cube corner).
+    pad = int(max(table_band.max(), table_band.shape[0], table_band.shape[1])) + 64
     small = 4 * (table.size + table_band.size) + 4 * (K.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
     # Segments of about sqrt(n) rows: summary, carry and apply threads then each walk ~2 sqrt(n) words.
     seg = [0] + [max(4, round(float(np.sqrt(float(n[a]))))) for a in (1, 2)]
@@ -247,17 +262,18 @@ def _layout(grid: LampGrid, rho: float) -> dict:
         n_seg=n_seg,
         columns=columns,
         scan=scan,
+        pad=pad,
     )
 
 
-def wetted_nbytes(grid: LampGrid, probe_radius: float, *, keep_owners: bool = False) -> int:
+def wetted_nbytes(grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0) -> int:
     """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: five bitmaps (blocked,
     solid, reached, fluid, band) and one per |dz| of the band's offsets (one bit per voxel each), three words per
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
-    chords there). Particles add :data:`BYTES_PER_PARTICLE` each."""
+    chords there); :data:`BYTES_PER_WALL` per wall. Particles add :data:`BYTES_PER_PARTICLE` each."""
     lay = _layout(grid, check_probe_radius(probe_radius))
-    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0)
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * int(n_walls)
 
 
 @dataclass
@@ -290,12 +306,18 @@ class WettedDiagnostics:
         rounds: Connectivity rounds of the last update.
         nonconverged: Whether the last connectivity solve stopped at ``max_rounds`` (reachable is then too small).
         nonconverged_total: Connectivity solves cut short since construction.
+        wall_counts: Signed counts per wall and axis, shape (W, 3), int64, as ``counts`` (the crossings each wall
+            took: the fluid's push on it); (0, 3) without walls.
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
-            was loaded, -1 where none was found; else None.
+            was loaded, -1 where none was found, -3 where a wall took it; else None.
+        wall_owners: With ``keep_owners``, per lamp grid a, the wall that took each face's crossing (-1: none),
+            shaped as ``owners``; else None.
         thin_faces: With ``keep_owners``, per lamp grid a, the thin dry intervals between the samples on either
             side of each face, shape (n_u, n_v, n_a + 1); else None.
-        force: Resultant force [N], shape (3,), when a pressure was given.
+        force: Resultant force on the particles [N], shape (3,), when a pressure was given.
+        wall_forces: Force on each wall [N], shape (W, 3), when a pressure was given (world coordinates when the
+            lamp gives it, ``ShiningLamp.diagnostics``; else the frame's).
     """
 
     counts: np.ndarray
@@ -318,9 +340,12 @@ class WettedDiagnostics:
     rounds: int
     nonconverged: bool
     nonconverged_total: int
+    wall_counts: np.ndarray | None = None
     owners: dict | None = None
+    wall_owners: dict | None = None
     thin_faces: dict | None = None
     force: np.ndarray | None = None
+    wall_forces: np.ndarray | None = None
 
 
 class WettedSurface:
@@ -360,6 +385,7 @@ class WettedSurface:
         keep_owners: bool = False,
         device=None,
         max_bytes: int = DEFAULT_MAX_BYTES,
+        walls=None,
     ):
         """Allocate the voxel bitmaps of ``grid`` on ``device``.
 
@@ -376,8 +402,18 @@ class WettedSurface:
             device: Warp device; the current default when None.
             max_bytes: Budget for the voxel buffers [bytes] (:func:`wetted_nbytes`); over it, ValueError before
                 anything is allocated.
+            walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], the normal
+                pointing from the wall into the fluid (:func:`~warp_lamp.validate.check_walls`; or its planes, shape
+                (W, 4)). The probe keeps rho from every wall, the fluid beyond the box is only on the fluid side of
+                every wall, and a crossing goes to a wall when the wall is nearer than every sphere
+                (:attr:`wall_counts`). Placed in the frame once, in float64 (positions are frame coordinates);
+                :meth:`update` may take the walls placed elsewhere (``ShiningLamp`` places them on the device).
         """
         self.probe_radius = check_probe_radius(probe_radius)
+        if isinstance(walls, np.ndarray) and walls.ndim == 2 and walls.shape[1] == 4:
+            planes = np.asarray(walls, dtype=np.float64)
+        else:
+            planes = check_walls(walls)
         if isinstance(max_rounds, bool) or not isinstance(max_rounds, (int, np.integer)) or max_rounds < 1:
             raise ValueError(f"max_rounds: expected an int >= 1, got {max_rounds!r}")
         self.grid = grid
@@ -385,7 +421,9 @@ class WettedSurface:
         self.max_rounds = int(max_rounds)
         self.device = wp.get_device(device)
         lay = _layout(grid, self.probe_radius)
-        self.nbytes = lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0)
+        #: Walls that bound the fluid.
+        self.n_walls = len(planes)
+        self.nbytes = lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * self.n_walls
         self._faces = lay["faces"]
         self._seg = lay["seg"]
         self._n_seg = lay["n_seg"]
@@ -426,8 +464,21 @@ class WettedSurface:
         box.lamp_mask = self.lamp_mask
         box.offset = wp.vec3i(*(int(x) for x in grid.offsets))
         box.face_offset = wp.vec3i(0, self._faces[0], self._faces[0] + self._faces[1])
+        box.pad = lay["pad"]
         self._box = box
         d = self.device
+        # The walls in the frame, in float64 with the grid's own pose, as ShiningLamp places them for positions
+        # already in the frame (``LampFrame``): n_f = R^T n, d_f = d - n . o.
+        n_frame = planes[:, :3] @ grid.rotation
+        d_frame = planes[:, 3] - planes[:, :3] @ grid.world_origin
+        static = np.concatenate([n_frame, d_frame[:, None]], axis=1).astype(np.float32).reshape(-1, 4)
+        #: The walls' planes in the frame, one ``vec4`` (n, d) each, fluid where n . x > d.
+        self.walls_frame = wp.array(static, dtype=wp.vec4, device=d)
+        self.walls_view = LampWalls()
+        self.walls_view.frame = self.walls_frame
+        self.walls_view.n = self.n_walls
+        #: Signed counts per wall and axis of the last update (3 int64 per wall), laid out like :attr:`counts`.
+        self.wall_counts = wp.zeros(3 * self.n_walls, dtype=wp.int64, device=d)
         nw = lay["n_words"]
         self.blocked = wp.zeros(nw, dtype=wp.uint32, device=d)
         self.reach = wp.zeros(nw, dtype=wp.uint32, device=d)
@@ -477,7 +528,9 @@ class WettedSurface:
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
 
-    def update(self, positions: wp.array, radii: wp.array, active: wp.array | None = None) -> None:
+    def update(
+        self, positions: wp.array, radii: wp.array, active: wp.array | None = None, *, walls: LampWalls | None = None
+    ) -> None:
         """Recompute the fluid region, its crossings, and each particle's signed crossing counts.
 
         Args:
@@ -485,15 +538,22 @@ class WettedSurface:
                 (float32), shape (N,), on the surface's device.
             radii: Particle radii [m], warp array of float32, shape (N,).
             active: Optional warp array of int32, shape (N,): 0 makes a particle absent (no solid, no force).
+            walls: The same walls placed in the frame elsewhere, as the kernels read them (``LampFrame.walls_view``:
+                planes on the device that a simulator may move between replays); None: those given at
+                construction.
         """
-        self._update(positions, radii, active)
+        self._update(positions, radii, active, walls=walls)
 
     #: Stages of an update, in order; ``_update(..., stop=s)`` runs the stages up to and including s (benchmarks).
     STAGES = ("rasterize", "connect", "dilate", "classify", "cross", "thin")
 
-    def _update(self, positions, radii, active, stop: str = "thin") -> None:
+    def _update(self, positions, radii, active, stop: str = "thin", walls: LampWalls | None = None) -> None:
         last = self.STAGES.index(stop)
         n = check_particle_arrays(positions, radii, active, self.device, "the wetted surface")
+        if walls is None:
+            walls = self.walls_view
+        elif walls.n != self.n_walls:
+            raise ValueError(f"walls: the surface was built for {self.n_walls} walls, got {walls.n}")
         if active is None:
             active = self._no_active
         self.reserve(n)
@@ -506,7 +566,7 @@ class WettedSurface:
             K.wet_clear,
             dim=max(n, K.N_DIAG, 1),
             inputs=[n],
-            outputs=[self.counts, self.hits, self.diag, self.rmax, self.cond],
+            outputs=[self.counts, self.hits, self.diag, self.rmax, self.cond, self.wall_counts],
             device=d,
         )
         self.blocked.zero_()
@@ -527,9 +587,15 @@ class WettedSurface:
                 outputs=[self.blocked, self.solid, self.heads, self.next_in_bin, self.rmax, self.diag],
                 device=d,
             )
+        if self.n_walls:
+            wp.launch(
+                K.wet_rasterize_walls, dim=ny * nz, inputs=[box, walls], outputs=[self.blocked, self.solid], device=d
+            )
 
         def round_body():
-            wp.launch(K.wet_sweep_x, dim=ny * nz, inputs=[box, self.blocked, self.cond], outputs=[self.reach], device=d)
+            wp.launch(
+                K.wet_sweep_x, dim=ny * nz, inputs=[box, walls, self.blocked, self.cond], outputs=[self.reach], device=d
+            )
             for axis in (1, 2):
                 seg, n_seg, cols = self._seg[axis], self._n_seg[axis], self._columns[axis]
                 segs = [self.seg_pass, self.seg_up, self.seg_down]
@@ -543,7 +609,7 @@ class WettedSurface:
                 wp.launch(
                     K.wet_scan_carry,
                     dim=cols,
-                    inputs=[box, n_seg, self.seg_pass, self.cond],
+                    inputs=[box, axis, walls, n_seg, self.seg_pass, self.cond],
                     outputs=segs[1:],
                     device=d,
                 )
@@ -557,7 +623,7 @@ class WettedSurface:
             wp.launch(
                 K.wet_frontier,
                 dim=nw,
-                inputs=[box, self.blocked, self.reach, self.cond],
+                inputs=[box, walls, self.blocked, self.reach, self.cond],
                 outputs=[self.frontier],
                 device=d,
             )
@@ -584,8 +650,10 @@ class WettedSurface:
             (self._table_band, self.table_band.shape, self.band),
         ):
             wy, wz = dims[0] - 1, dims[1] - 1
-            wp.launch(K.wet_dilate_y, dim=nw, inputs=[box, wy, wz, self.reach, table], outputs=[self.planes], device=d)
-            wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, wz, self.planes], outputs=[out], device=d)
+            wp.launch(
+                K.wet_dilate_y, dim=nw, inputs=[box, walls, wy, wz, self.reach, table], outputs=[self.planes], device=d
+            )
+            wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
         if last < 3:
             return
         if n > 0:
@@ -603,6 +671,7 @@ class WettedSurface:
                 positions,
                 radii,
                 box,
+                walls,
                 self.reach,
                 self.band,
                 self.solid,
@@ -622,8 +691,19 @@ class WettedSurface:
         wp.launch(
             K.wet_cross,
             dim=sum(self._face_words) * per_word,
-            inputs=[positions, radii, box, first, self._bits, self.fluid, self.heads, self.next_in_bin, self.rmax],
-            outputs=[self.counts, self.hits, self.rays, self.diag, self.owners],
+            inputs=[
+                positions,
+                radii,
+                box,
+                walls,
+                first,
+                self._bits,
+                self.fluid,
+                self.heads,
+                self.next_in_bin,
+                self.rmax,
+            ],
+            outputs=[self.counts, self.hits, self.rays, self.diag, self.owners, self.wall_counts],
             device=d,
         )
         if last < 5 or n == 0:
@@ -636,6 +716,7 @@ class WettedSurface:
                 radii,
                 active,
                 box,
+                walls,
                 self.fluid,
                 self.reach,
                 self.heads,
@@ -650,6 +731,10 @@ class WettedSurface:
     def counts_numpy(self) -> np.ndarray:
         """Signed crossing counts of the last update, shape (N, 3), int64 (copies to the host)."""
         return self.counts.numpy()[: 3 * self.n].reshape(self.n, 3)
+
+    def wall_counts_numpy(self) -> np.ndarray:
+        """Signed counts per wall and axis of the last update, shape (W, 3), int64 (copies to the host)."""
+        return self.wall_counts.numpy().reshape(-1, 3).copy()
 
     def diagnostics(self, pressure=None) -> WettedDiagnostics:
         """Voxel maps, per-ray crossings, skip counters and the connectivity outcome (host copies).
@@ -692,11 +777,12 @@ class WettedSurface:
             rounds=int(diag[K.DIAG_ROUNDS]),
             nonconverged=bool(diag[K.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
+            wall_counts=self.wall_counts_numpy(),
         )
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
             thin = self.thin_faces.numpy()
-            out.owners, out.thin_faces = {}, {}
+            out.owners, out.thin_faces, out.wall_owners = {}, {}, {}
             start = 0
             for a in range(3):
                 nu, nv = (int(x) for x in g.counts[a])
@@ -704,6 +790,10 @@ class WettedSurface:
                     block = src[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
                     dst[a] = block.transpose(1, 0, 2).copy()
                 start += self._faces[a]
+                walled = out.owners[a] <= K.WALL_OWNER
+                out.wall_owners[a] = np.where(walled, K.WALL_OWNER - out.owners[a], -1)
+                out.owners[a][walled] = K.WALL_OWNER
         if pressure is not None:
             out.force = (counts * pressure_area(pressure, g)).sum(axis=0)
+            out.wall_forces = out.wall_counts * pressure_area(pressure, g)
         return out

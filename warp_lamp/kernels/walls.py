@@ -87,3 +87,10 @@ def cell_ray_base(grid: LampGridParams, a: wp.int32, i: wp.int32, j: wp.int32) -
     base[(a + 1) % 3] = wp.float64(grid.corner_u[a]) + (wp.float64(i) + wp.float64(0.5)) * wp.float64(grid.h_u[a])
     base[(a + 2) % 3] = wp.float64(grid.corner_v[a]) + (wp.float64(j) + wp.float64(0.5)) * wp.float64(grid.h_v[a])
     return base
+
+
+@wp.func
+def plane_value(pl: wp.vec4, x: wp.vec3d) -> wp.float64:
+    """The wall's signed distance ``g = n . x - d`` at x (frame coordinates) in float64, in this order: positive on
+    the fluid side, negative inside the wall (``ray_stop``'s expression; the normal is the float32 unit normal)."""
+    return ((wp.float64(pl[0]) * x[0] + wp.float64(pl[1]) * x[1]) + wp.float64(pl[2]) * x[2]) - wp.float64(pl[3])

@@ -21,9 +21,17 @@ Pipeline of one update (each step's decisions are exact, so CPU and CUDA agree b
 6. ``wet_thin``: a sphere chord that holds no voxel centre, between two fluid samples of a row, is a dry interval
    the samples cannot see; overlapping ones (or ones whose gap is dry) merge, and each merged interval loads an
    entry and an exit crossing.
+
+Walls (``LampWalls``, planes in the frame; none: every result as without them): ``wet_rasterize_walls`` adds them to
+the blocked (``g < rho``) and solid (``g < 0``) maps, the outside is reached only where it keeps rho from every wall
+(runs along x, ``wall_row_run``), the virtual samples past the box are the walls' own fluid (``walls_fluid``), the
+exact test has the offset planes among its candidates (``wall_search``), and a crossing whose dry voxel lies in a
+wall may go to it (``load_crossing``, ``wall_counts``).
 """
 
 import warp as wp
+
+from warp_lamp.kernels.walls import LampWalls, plane_value
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -57,6 +65,14 @@ DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
 DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
+#: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
+RUN_FAR = wp.constant(1 << 28)
+#: Wall w among a candidate's defining spheres (sphere indices are >= 0, -1 is none): ``WALL_TAG - w``.
+WALL_TAG = wp.constant(-2)
+#: Wall w in the per-face owners (-2: no crossing loaded, -1: none found): ``WALL_OWNER - w``.
+WALL_OWNER = wp.constant(-3)
+#: Slack of the walls' gate (their float32 normals are unit to about 1e-7).
+WALL_SLACK = wp.constant(wp.float64(1.0e-6))
 
 
 @wp.struct
@@ -77,6 +93,7 @@ class WetBox:
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
+    pad: wp.int32  # wall runs along x are exact from -pad to n_x - 1 + pad (past every index a kernel asks about)
 
 
 # --- bit helpers ------------------------------------------------------------------------------------------
@@ -156,24 +173,109 @@ def floor_div32(x: wp.int32) -> wp.int32:
 
 
 @wp.func
-def ext_word(bits: wp.array[wp.uint32], row: wp.int32, q: wp.int32, box: WetBox) -> wp.uint32:
-    """Word q of the row starting at word index ``row``, with every position outside the box set (the outside
-    is reachable)."""
-    if q < 0 or q >= box.nwx:
-        return ONES
-    return bits[row + q] | ~row_mask(box, q)
+def run_bits(run: wp.vec2i, q: wp.int32) -> wp.uint32:
+    """Bits b of word q whose position 32 q + b lies in the run [run[0], run[1]] (empty when run[0] > run[1])."""
+    return low_mask(run[1] + 1 - 32 * q) & ~low_mask(run[0] - 32 * q)
 
 
 @wp.func
-def shifted_word(bits: wp.array[wp.uint32], row: wp.int32, w: wp.int32, s: wp.int32, box: WetBox) -> wp.uint32:
-    """32 bits whose bit b is the voxel at x = 32 w + b - s of the row (outside the box: set)."""
+def in_run(run: wp.vec2i, i: wp.int32) -> wp.bool:
+    return run[0] <= i and i <= run[1]
+
+
+@wp.func
+def widen(run: wp.vec2i, d: wp.int32) -> wp.vec2i:
+    """The run grown by d on both sides (an empty run stays empty)."""
+    if run[0] > run[1]:
+        return run
+    return wp.vec2i(run[0] - d, run[1] + d)
+
+
+@wp.func
+def voxel_centre(i: wp.int32, h: wp.float64) -> wp.float64:
+    """Voxel centre coordinate (i + 1/2) h (also for i beyond the box), exactly as every kernel evaluates it."""
+    return (wp.float64(i) + wp.float64(0.5)) * h
+
+
+@wp.func
+def wall_row_run(walls: LampWalls, thr: wp.float64, j: wp.int32, k: wp.int32, box: WetBox) -> wp.vec2i:
+    """The x indices i of the voxel row (j, k) (j, k and i may lie beyond the box) whose centre has ``g >= thr`` for
+    every wall (``plane_value``, float64). Each wall's g is monotone along the row (every float64 step is), so this
+    is one run: found from an estimate, then walked to its exact ends within [-pad, n_x - 1 + pad], and left open
+    (``RUN_FAR``) past an end of that range that passes. No walls: everything."""
+    lo = int(-RUN_FAR)
+    hi = int(RUN_FAR)
+    if walls.n == 0:
+        return wp.vec2i(lo, hi)
+    hx = box.h[0]
+    y = voxel_centre(j, box.h[1])
+    z = voxel_centre(k, box.h[2])
+    first = -box.pad
+    last = box.n[0] - 1 + box.pad
+    for w in range(walls.n):
+        pl = walls.frame[w]
+        n0 = wp.float64(pl[0])
+        if n0 == wp.float64(0.0):
+            # g does not change along the row (n0 x is exactly 0).
+            if not (plane_value(pl, wp.vec3d(voxel_centre(0, hx), y, z)) >= thr):
+                return wp.vec2i(RUN_FAR, -RUN_FAR)
+            continue
+        t = ((thr + wp.float64(pl[3])) - (wp.float64(pl[1]) * y + wp.float64(pl[2]) * z)) / n0
+        f = t / hx - wp.float64(0.5)
+        i = first
+        if wp.isfinite(f):
+            i = wp.int32(wp.clamp(wp.floor(f), wp.float64(first), wp.float64(last)))
+        if n0 > wp.float64(0.0):
+            # g grows with i: the run starts at the first i that passes.
+            while i > first and plane_value(pl, wp.vec3d(voxel_centre(i - 1, hx), y, z)) >= thr:
+                i -= 1
+            while i <= last and not (plane_value(pl, wp.vec3d(voxel_centre(i, hx), y, z)) >= thr):
+                i += 1
+            if i > first:
+                lo = wp.max(lo, i)
+        else:
+            # g falls with i (or the plane is not finite, and nothing passes).
+            while i < last and plane_value(pl, wp.vec3d(voxel_centre(i + 1, hx), y, z)) >= thr:
+                i += 1
+            while i >= first and not (plane_value(pl, wp.vec3d(voxel_centre(i, hx), y, z)) >= thr):
+                i -= 1
+            if i < last:
+                hi = wp.min(hi, i)
+    return wp.vec2i(lo, hi)
+
+
+@wp.func
+def outside_ok(walls: LampWalls, thr: wp.float64, ijk: wp.vec3i, box: WetBox) -> wp.bool:
+    """The voxel centre ijk (any index, also beyond the box) has ``g >= thr`` for every wall: the same test as
+    ``wall_row_run``'s, point by point."""
+    p = wp.vec3d(voxel_centre(ijk[0], box.h[0]), voxel_centre(ijk[1], box.h[1]), voxel_centre(ijk[2], box.h[2]))
+    for w in range(walls.n):
+        if not (plane_value(walls.frame[w], p) >= thr):
+            return False
+    return True
+
+
+@wp.func
+def ext_word(bits: wp.array[wp.uint32], row: wp.int32, q: wp.int32, box: WetBox, run: wp.vec2i) -> wp.uint32:
+    """Word q of the row starting at word index ``row``, with the positions outside the box set where they lie in
+    ``run`` (the row's outside that is reachable: everything without walls)."""
+    if q < 0 or q >= box.nwx:
+        return run_bits(run, q)
+    return bits[row + q] | (~row_mask(box, q) & run_bits(run, q))
+
+
+@wp.func
+def shifted_word(
+    bits: wp.array[wp.uint32], row: wp.int32, w: wp.int32, s: wp.int32, box: WetBox, run: wp.vec2i
+) -> wp.uint32:
+    """32 bits whose bit b is the voxel at x = 32 w + b - s of the row (outside the box: set within ``run``)."""
     x0 = 32 * w - s
     q = floor_div32(x0)
     o = x0 - 32 * q
-    lo = ext_word(bits, row, q, box)
+    lo = ext_word(bits, row, q, box, run)
     if o == 0:
         return lo
-    hi = ext_word(bits, row, q + 1, box)
+    hi = ext_word(bits, row, q + 1, box, run)
     return (lo >> wp.uint32(o)) | (hi << wp.uint32(32 - o))
 
 
@@ -189,8 +291,11 @@ def wet_clear(
     diag: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     cond: wp.array[wp.int32],
+    wall_counts: wp.array[wp.int64],
 ):
     t = wp.tid()
+    if t < wall_counts.shape[0]:
+        wall_counts[t] = wp.int64(0)
     if t < n_particles:
         counts[3 * t] = wp.int64(0)
         counts[3 * t + 1] = wp.int64(0)
@@ -344,30 +449,61 @@ def wet_rasterize(
                 mark_run(solid, c[0], r2, dy, dz, j, k, box)
 
 
+@wp.kernel
+def wet_rasterize_walls(
+    box: WetBox,
+    walls: LampWalls,
+    # outputs
+    blocked: wp.array[wp.uint32],
+    solid: wp.array[wp.uint32],
+):
+    """One thread per x row, after ``wet_rasterize``: the walls join the blocked map where ``g < rho`` (the probe
+    centre keeps rho from every wall) and the solid map where ``g < 0`` (inside a wall: never fluid). Each is the
+    complement of one run along the row (``wall_row_run``)."""
+    t = wp.tid()
+    j = t % box.n[1]
+    k = t / box.n[1]
+    allowed = wall_row_run(walls, box.rho, j, k, box)
+    outside = wall_row_run(walls, wp.float64(0.0), j, k, box)
+    row = word_at(box, 0, j, k)
+    for w in range(box.nwx):
+        m = row_mask(box, w)
+        blocked[row + w] = blocked[row + w] | (m & ~run_bits(allowed, w))
+        solid[row + w] = solid[row + w] | (m & ~run_bits(outside, w))
+
+
 # --- connectivity -----------------------------------------------------------------------------------------
 
 
 @wp.kernel
 def wet_sweep_x(
     box: WetBox,
+    walls: LampWalls,
     blocked: wp.array[wp.uint32],
     cond: wp.array[wp.int32],
     # outputs
     reach: wp.array[wp.uint32],
 ):
-    """One thread per x row: runs of allowed voxels joined to a reached voxel or to the outside, both ways."""
+    """One thread per x row: runs of allowed voxels joined to a reached voxel or to the outside, both ways (the
+    outside is reached where it keeps rho from every wall)."""
     if cond[0] == 0:
         return
-    row = wp.tid() * box.nwx
+    t = wp.tid()
+    row = t * box.nwx
     nwx = box.nwx
-    carry = wp.uint32(1)  # the outside before x = 0 is reachable
+    run = wall_row_run(walls, box.rho, t % box.n[1], t / box.n[1], box)
+    carry = wp.uint32(0)
+    if in_run(run, -1):
+        carry = wp.uint32(1)  # the outside before x = 0
     for w in range(nwx):
         a = ~blocked[row + w] & row_mask(box, w)
         u = fill_up(a, reach[row + w] | (carry & a))
         reach[row + w] = u
         carry = u >> wp.uint32(31)
     top = box.n[0] - 1 - 32 * (nwx - 1)
-    carry = wp.uint32(1) << wp.uint32(top)  # the outside after x = nx - 1
+    carry = wp.uint32(0)
+    if in_run(run, box.n[0]):
+        carry = wp.uint32(1) << wp.uint32(top)  # the outside after x = nx - 1
     w = nwx - 1
     while w >= 0:
         a = ~blocked[row + w] & row_mask(box, w)
@@ -449,9 +585,28 @@ def wet_scan_summary(
     seg_down[t] = down
 
 
+@wp.func
+def outside_row_bits(walls: LampWalls, axis: wp.int32, col: wp.int32, end: wp.int32, box: WetBox) -> wp.uint32:
+    """The reached outside just past one end of word column ``col`` along y (axis 1) or z (axis 2): the word of
+    the row at index -1 (end 0) or n (end 1) of that axis."""
+    w = col % box.nwx
+    other = col / box.nwx
+    idx = -1
+    if end != 0:
+        idx = box.n[axis]
+    run = wp.vec2i(0)
+    if axis == 1:
+        run = wall_row_run(walls, box.rho, idx, other, box)
+    else:
+        run = wall_row_run(walls, box.rho, other, idx, box)
+    return run_bits(run, w)
+
+
 @wp.kernel
 def wet_scan_carry(
     box: WetBox,
+    axis: wp.int32,
+    walls: LampWalls,
     n_seg: wp.int32,
     seg_pass: wp.array[wp.uint32],
     cond: wp.array[wp.int32],
@@ -460,18 +615,19 @@ def wet_scan_carry(
     seg_down: wp.array[wp.uint32],
 ):
     """One thread per column: replace each segment's summaries by the carries into it, from below (seg_up) and
-    from above (seg_down); the outside past both ends of the column is reachable."""
+    from above (seg_down); the outside past both ends of the column is reachable (where it keeps rho from every
+    wall)."""
     if cond[0] == 0:
         return
     col = wp.tid()
     base = col * n_seg
     m = row_mask(box, col % box.nwx)
-    c = m
+    c = m & outside_row_bits(walls, axis, col, 0, box)
     for s in range(n_seg):
         g = seg_up[base + s]
         seg_up[base + s] = c
         c = g | (c & seg_pass[base + s])
-    c = m
+    c = m & outside_row_bits(walls, axis, col, 1, box)
     s = n_seg - 1
     while s >= 0:
         g = seg_down[base + s]
@@ -518,6 +674,7 @@ def wet_scan_apply(
 @wp.kernel
 def wet_frontier(
     box: WetBox,
+    walls: LampWalls,
     blocked: wp.array[wp.uint32],
     reach: wp.array[wp.uint32],
     cond: wp.array[wp.int32],
@@ -538,11 +695,25 @@ def wet_frontier(
     if cand == wp.uint32(0):
         return
     row = idx - w
-    nb = shifted_word(reach, row, w, 1, box) | shifted_word(reach, row, w, -1, box)
-    if j == 0 or j == box.n[1] - 1 or k == 0 or k == box.n[2] - 1:
-        nb = ONES
+    run = wall_row_run(walls, box.rho, j, k, box)
+    nb = shifted_word(reach, row, w, 1, box, run) | shifted_word(reach, row, w, -1, box, run)
+    # Neighbour rows beyond the box are the outside, reached where it keeps rho from every wall.
+    if j == 0:
+        nb = nb | run_bits(wall_row_run(walls, box.rho, -1, k, box), w)
     else:
-        nb = nb | reach[idx - nwx] | reach[idx + nwx] | reach[idx - nwx * box.n[1]] | reach[idx + nwx * box.n[1]]
+        nb = nb | reach[idx - nwx]
+    if j == box.n[1] - 1:
+        nb = nb | run_bits(wall_row_run(walls, box.rho, box.n[1], k, box), w)
+    else:
+        nb = nb | reach[idx + nwx]
+    if k == 0:
+        nb = nb | run_bits(wall_row_run(walls, box.rho, j, -1, box), w)
+    else:
+        nb = nb | reach[idx - nwx * box.n[1]]
+    if k == box.n[2] - 1:
+        nb = nb | run_bits(wall_row_run(walls, box.rho, j, box.n[2], box), w)
+    else:
+        nb = nb | reach[idx + nwx * box.n[1]]
     if (cand & nb) != wp.uint32(0):
         frontier[0] = 1
 
@@ -576,6 +747,7 @@ def wet_round_end(
 @wp.kernel
 def wet_dilate_y(
     box: WetBox,
+    walls: LampWalls,
     wy: wp.int32,
     wz: wp.int32,
     reach: wp.array[wp.uint32],
@@ -586,7 +758,9 @@ def wet_dilate_y(
     """One thread per word: plane m gets the voxels with a reached voxel at some (dx, dy, m) of the offset set.
 
     ``table[|dy| (wz + 1) + m]`` (|dy| <= wy, m <= wz) is the largest |dx| with (dx, dy, m) in the set, or -1; it
-    does not grow with m, so walking m downward only ever widens the x reach of a row.
+    does not grow with m, so walking m downward only ever widens the x reach of a row. Beyond the box, the reached
+    points are those that keep rho from every wall (all of them without walls): one run per row, so a row beyond
+    the box dilated by d is that run widened by d.
     """
     idx = wp.tid()
     wjk = word_coords(box, idx)
@@ -599,13 +773,15 @@ def wet_dilate_y(
     for jj in range(-wy, wy + 1):
         row_j = j + jj
         aj = wp.abs(jj)
+        run = wall_row_run(walls, box.rho, row_j, k, box)
         if row_j < 0 or row_j >= box.n[1]:
             for m in range(wz + 1):
-                if table[aj * (wz + 1) + m] >= 0:
-                    planes[m * nw + idx] = ONES
+                d = table[aj * (wz + 1) + m]
+                if d >= 0:
+                    planes[m * nw + idx] = planes[m * nw + idx] | run_bits(widen(run, d), w)
             continue
         row = word_at(box, 0, row_j, k)
-        running = shifted_word(reach, row, w, 0, box)
+        running = shifted_word(reach, row, w, 0, box, run)
         dcur = int(0)
         m = wz
         while m >= 0:
@@ -613,7 +789,11 @@ def wet_dilate_y(
             if d >= 0:
                 while dcur < d:
                     dcur += 1
-                    running = running | shifted_word(reach, row, w, dcur, box) | shifted_word(reach, row, w, -dcur, box)
+                    running = (
+                        running
+                        | shifted_word(reach, row, w, dcur, box, run)
+                        | shifted_word(reach, row, w, -dcur, box, run)
+                    )
                 planes[m * nw + idx] = planes[m * nw + idx] | running
             m -= 1
 
@@ -621,12 +801,16 @@ def wet_dilate_y(
 @wp.kernel
 def wet_dilate_z(
     box: WetBox,
+    walls: LampWalls,
+    wy: wp.int32,
     wz: wp.int32,
     planes: wp.array[wp.uint32],
+    table: wp.array[wp.int32],
     # outputs
     fluid: wp.array[wp.uint32],
 ):
-    """One thread per word: the dilated set = OR over |dz| <= wz of plane |dz| at z + dz (outside the box: set)."""
+    """One thread per word: the dilated set = OR over |dz| <= wz of plane |dz| at z + dz. A layer beyond the box is
+    set (no walls), or, with walls, its plane is built here from the rows' runs beyond the box (``wet_dilate_y``)."""
     idx = wp.tid()
     wjk = word_coords(box, idx)
     w = wjk[0]
@@ -636,7 +820,14 @@ def wet_dilate_z(
     for kk in range(-wz, wz + 1):
         kz = k + kk
         if kz < 0 or kz >= box.n[2]:
-            acc = ONES
+            if walls.n == 0:
+                acc = ONES
+            else:
+                m = wp.abs(kk)
+                for jj in range(-wy, wy + 1):
+                    d = table[wp.abs(jj) * (wz + 1) + m]
+                    if d >= 0:
+                        acc = acc | run_bits(widen(wall_row_run(walls, box.rho, j + jj, kz, box), d), w)
         else:
             acc = acc | planes[wp.abs(kk) * box.n_words + word_at(box, w, j, kz)]
     fluid[idx] = acc
@@ -656,6 +847,18 @@ def sphere_distance(p: wp.vec3d, i: wp.int32, positions: wp.array[wp.vec3], radi
 
 
 @wp.func
+def buried(i: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], walls: LampWalls) -> wp.bool:
+    """Sphere i lies wholly inside a wall (``g(c) + r < 0``): part of the wall, never a crossing's owner. It cannot
+    hold the probe off (the wall holds it farther) nor make a thin chord between fluid samples (g is affine)."""
+    p = positions[i]
+    c = wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
+    for w in range(walls.n):
+        if plane_value(walls.frame[w], c) + wp.float64(radii[i]) < wp.float64(0.0):
+            return True
+    return False
+
+
+@wp.func
 def nearest_in_cube(
     p: wp.vec3d,
     reach: wp.float64,
@@ -664,9 +867,10 @@ def nearest_in_cube(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.int32:
-    """Among binned spheres with centres in the bins that the cube p +- reach touches: the smallest |p - c| - r,
-    ties to the lowest index; -1 if there are none."""
+    """Among binned spheres with centres in the bins that the cube p +- reach touches, less those buried in a wall:
+    the smallest |p - c| - r, ties to the lowest index; -1 if there are none."""
     lo = wp.vec3i(0)
     hi = wp.vec3i(0)
     for a in range(3):
@@ -682,8 +886,9 @@ def nearest_in_cube(
                 while i >= 0:
                     d = sphere_distance(p, i, positions, radii)
                     if d < best or (d == best and i < best_id):
-                        best = d
-                        best_id = i
+                        if walls.n == 0 or not buried(i, positions, radii, walls):
+                            best = d
+                            best_id = i
                     i = next_in_bin[i]
     return best_id
 
@@ -698,8 +903,10 @@ def nearest_sphere(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.int32:
-    """The sphere nearest to crossing point p of a lamp-a row (smallest |p - c| - r, ties to the lowest index).
+    """The sphere nearest to crossing point p of a lamp-a row (smallest |p - c| - r, ties to the lowest index; a
+    sphere buried in a wall is not one).
 
     First within one voxel edge: a sphere at distance d1 <= h from p has every sphere that could tie or beat it
     centred within h + r_max of p, all searched, so d1's sphere is the answer. Otherwise (a membrane spanning a
@@ -707,11 +914,11 @@ def nearest_sphere(
     """
     near = box.h[a]
     reach = (near + rmax) * wp.float64(1.000000001)
-    pid = nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box)
+    pid = nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box, walls)
     if pid >= 0:
         if sphere_distance(p, pid, positions, radii) <= near:
             return pid
-    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box)
+    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box, walls)
 
 
 @wp.func
@@ -727,14 +934,23 @@ def load_crossing(
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     box: WetBox,
+    walls: LampWalls,
     counts: wp.array[wp.int64],
     hits: wp.array[wp.int32],
     rays: wp.array[wp.int32],
     diag: wp.array[wp.int32],
     owners: wp.array[wp.int32],
+    wall_counts: wp.array[wp.int64],
 ):
     """A crossing at p on a row along axis a: fluid to dry going +a (enters = 1, the low lamp's +1) or dry to
-    fluid (the high lamp's -1). Integer counts, so the order of the atomics cannot change the result."""
+    fluid (the high lamp's -1), to the nearest sphere, ``|p - c| - r`` (ties to the lowest index). With walls:
+    when the dry voxel lies inside walls (``g < 0`` at its centre; such walls cut axis a), the one of them with the
+    smallest signed distance ``g(p)`` (ties to the lower wall) takes the crossing if that is smaller than the
+    sphere's distance (ties to the sphere) or no sphere lies within the attribution bound; a crossing with no sphere
+    within the bound and its dry voxel in no wall (a dry corner between walls) goes to the wall that cuts axis a
+    with the smallest g(p). A wall whose normal has no a-component never takes an axis-a crossing, so on an axis
+    no wall cuts the particles' counts still sum to zero. Integer counts, so the order of the atomics cannot change
+    the result."""
     lamp = 2 * a
     sign = int(1)
     if enters != 0:
@@ -744,7 +960,44 @@ def load_crossing(
         sign = -1
     if ((box.lamp_mask >> lamp) & 1) == 0:
         return
-    pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box)
+    pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box, walls)
+    if walls.n > 0:
+        ds = FAR
+        if pid >= 0:
+            ds = sphere_distance(p, pid, positions, radii)
+            if not (ds <= box.bound[a]):
+                pid = -1
+        xd = p
+        if enters != 0:
+            xd[a] = voxel_centre(face, box.h[a])
+        else:
+            xd[a] = voxel_centre(face - 1, box.h[a])
+        wall = int(-1)
+        best = wp.float64(0.0)
+        for w in range(walls.n):
+            pl = walls.frame[w]
+            if pl[a] != wp.float32(0.0):
+                if plane_value(pl, xd) < wp.float64(0.0):
+                    g = plane_value(pl, p)
+                    if wall < 0 or g < best:
+                        best = g
+                        wall = w
+        if wall < 0 and pid < 0:
+            for w in range(walls.n):
+                pl = walls.frame[w]
+                if pl[a] != wp.float32(0.0):
+                    g = plane_value(pl, p)
+                    if wall < 0 or g < best:
+                        best = g
+                        wall = w
+        if pid >= 0:
+            if not (best < ds):
+                wall = -1
+        if wall >= 0:
+            if owners.shape[0] > 0:
+                owners[box.face_offset[a] + ray * (box.n[a] + 1) + face] = WALL_OWNER - wall
+            wp.atomic_add(wall_counts, 3 * wall + a, wp.int64(sign))
+            return
     if owners.shape[0] > 0:
         owners[box.face_offset[a] + ray * (box.n[a] + 1) + face] = pid
     if pid < 0:
@@ -759,6 +1012,7 @@ def wet_cross(
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
     box: WetBox,
+    walls: LampWalls,
     first: wp.vec3i,
     bits: wp.int32,
     fluid: wp.array[wp.uint32],
@@ -771,6 +1025,7 @@ def wet_cross(
     rays: wp.array[wp.int32],
     diag: wp.array[wp.int32],
     owners: wp.array[wp.int32],
+    wall_counts: wp.array[wp.int64],
 ):
     """Crossings on the faces of all three axes in one launch (threads from ``first[a]`` on are axis a's): one
     thread per ``bits`` bits of a face word, so that a thread makes at most ``bits`` nearest-sphere searches (the
@@ -778,7 +1033,8 @@ def wet_cross(
 
     Axis 0: face words q = (nwx + 1) row + w, faces f = 32 w + b of row (j, k) (ray j + ny k). Axis 1: q = w + nwx
     (jf + (ny + 1) k), faces jf = 0..ny of the rays of voxels x = 32 w + b (ray k + nz x). Axis 2: q = w + nwx
-    (j + ny kf), faces kf = 0..nz (ray x + nx j). Beyond the box on every side is fluid.
+    (j + ny kf), faces kf = 0..nz (ray x + nx j). Beyond the box is fluid: everywhere without walls, with walls
+    within rho of the points that keep rho from every wall (``walls_fluid``, the virtual fluid).
     """
     t = wp.tid()
     axis = int(0)
@@ -804,10 +1060,25 @@ def wet_cross(
         j = row % box.n[1]
         k = row / box.n[1]
         prev = wp.uint32(1)
-        if w > 0:
-            prev = fluid[row * nwx + w - 1] >> wp.uint32(31)
-        if w < nwx:
-            after = fluid[row * nwx + w]
+        if walls.n == 0:
+            if w > 0:
+                prev = fluid[row * nwx + w - 1] >> wp.uint32(31)
+            if w < nwx:
+                after = fluid[row * nwx + w]
+        else:
+            # The samples just past the row's ends are the virtual fluid (``walls_fluid``); the faces of this word
+            # reach at most position n_x, so the other padding bits do not matter.
+            after = wp.uint32(0)
+            if w < nwx:
+                after = fluid[row * nwx + w] & row_mask(box, w)
+            top = box.n[0] - 32 * w
+            if top >= 0 and top < 32:
+                if walls_fluid(virtual_point(box.n[0], j, k, box), walls, box.rho):
+                    after = after | (wp.uint32(1) << wp.uint32(top))
+            if w > 0:
+                prev = (fluid[row * nwx + w - 1] & row_mask(box, w - 1)) >> wp.uint32(31)
+            elif not walls_fluid(virtual_point(-1, j, k, box), walls, box.rho):
+                prev = wp.uint32(0)
         before = (after << wp.uint32(1)) | prev
         valid = low_mask(box.n[0] + 1 - 32 * w)
     else:
@@ -818,15 +1089,23 @@ def wet_cross(
             k = rest / (box.n[1] + 1)
             if face > 0:
                 before = fluid[word_at(box, w, face - 1, k)]
+            elif walls.n > 0:
+                before = virtual_word(walls, w, wp.vec3i(0, -1, k), box)
             if face < box.n[1]:
                 after = fluid[word_at(box, w, face, k)]
+            elif walls.n > 0:
+                after = virtual_word(walls, w, wp.vec3i(0, box.n[1], k), box)
         else:
             j = rest % box.n[1]
             face = rest / box.n[1]
             if face > 0:
                 before = fluid[word_at(box, w, j, face - 1)]
+            elif walls.n > 0:
+                before = virtual_word(walls, w, wp.vec3i(0, j, -1), box)
             if face < box.n[2]:
                 after = fluid[word_at(box, w, j, face)]
+            elif walls.n > 0:
+                after = virtual_word(walls, w, wp.vec3i(0, j, box.n[2]), box)
         valid = row_mask(box, w)
     tr = (before ^ after) & valid & (low_mask(bits) << wp.uint32(sub * bits))
     while tr != wp.uint32(0):
@@ -864,11 +1143,13 @@ def wet_cross(
             next_in_bin,
             rmax,
             box,
+            walls,
             counts,
             hits,
             rays,
             diag,
             owners,
+            wall_counts,
         )
 
 
@@ -956,10 +1237,12 @@ def defining(
 
 
 @wp.func
-def reached_at(ix: wp.int32, iy: wp.int32, iz: wp.int32, reach: wp.array[wp.uint32], box: WetBox) -> wp.bool:
-    """Voxel (ix, iy, iz) reached; every lattice point beyond the box is."""
+def reached_at(
+    ix: wp.int32, iy: wp.int32, iz: wp.int32, reach: wp.array[wp.uint32], box: WetBox, walls: LampWalls
+) -> wp.bool:
+    """Voxel (ix, iy, iz) reached; a lattice point beyond the box is when it keeps rho from every wall."""
     if ix < 0 or iy < 0 or iz < 0 or ix >= box.n[0] or iy >= box.n[1] or iz >= box.n[2]:
-        return True
+        return outside_ok(walls, box.rho, wp.vec3i(ix, iy, iz), box)
     word = reach[word_at(box, ix / 32, iy, iz)]
     return ((word >> wp.uint32(ix % 32)) & wp.uint32(1)) != wp.uint32(0)
 
@@ -1065,14 +1348,20 @@ def candidate_check(
     next_in_bin: wp.array[wp.int32],
     reach: wp.array[wp.uint32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.int32:
-    """Probe centre z, on inflated spheres i, j, k (-1: none), within rho of x: ``CANDIDATE_OK`` when it is allowed
-    and reachable; else the sphere that blocks it (>= 0, tried first as the next call's ``hint``: neighbouring
-    candidates are mostly blocked by the same sphere; the answer does not depend on it), or -1."""
+    """Probe centre z, on inflated spheres or offset walls i, j, k (-1: none; ``WALL_TAG - w``: wall w), within rho
+    of x: ``CANDIDATE_OK`` when it is allowed and reachable; else the sphere that blocks it (>= 0, tried first as the
+    next call's ``hint``: neighbouring candidates are mostly blocked by the same sphere; the answer does not depend
+    on it), or -1. Allowed: outside every other inflated ball and ``g >= rho`` for every other wall. A wall never
+    blocks the segment to a reached corner: g is affine, the corner keeps rho from every wall and z from every wall
+    but its own, on whose offset plane it lies."""
     if hint >= 0:
         if not defining(hint, i, j, k, positions, radii):
             if inside_inflated(z, hint, positions, radii, box):
                 return hint
+    if not walls_allow(z, i, j, k, walls, box.rho):
+        return -1
     near = (rmax + wp.float64(2.0) * box.rho) * (wp.float64(1.0) + SLACK)
     blocker = blocked_point(x, z, i, j, k, near, positions, radii, heads, next_in_bin, box)
     if blocker >= 0:
@@ -1086,7 +1375,7 @@ def candidate_check(
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
         iz = lo[2] + ((corner >> 2) & 1)
-        if reached_at(ix, iy, iz, reach, box):
+        if reached_at(ix, iy, iz, reach, box, walls):
             y = wp.vec3d(
                 (wp.float64(ix) + wp.float64(0.5)) * box.h[0],
                 (wp.float64(iy) + wp.float64(0.5)) * box.h[1],
@@ -1194,6 +1483,7 @@ def vertex_walk(
     exposed: wp.array[wp.int32],
     reach: wp.array[wp.uint32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.bool:
     """A valid candidate among the triple points of inflated spheres i < j < k, k exposed and near x (bin walk)."""
     rho2 = box.rho * box.rho
@@ -1211,7 +1501,7 @@ def vertex_walk(
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check(
-                                        x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box
+                                        x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls
                                     )
                                     if res == CANDIDATE_OK:
                                         return True
@@ -1285,6 +1575,7 @@ def probe_walk(
     exposed: wp.array[wp.int32],
     reach: wp.array[wp.uint32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.bool:
     """``probe_reaches``'s search over faces, edges and vertices by walking the bins (for more near spheres than
     the local list holds): the same candidates, pairs and triples in increasing index order."""
@@ -1304,7 +1595,7 @@ def probe_walk(
                             w = x - z
                             if dot3(w, w) <= rho2:
                                 res = candidate_check(
-                                    x, z, i, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box
+                                    x, z, i, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls
                                 )
                                 if res == CANDIDATE_OK:
                                     return True
@@ -1345,6 +1636,7 @@ def probe_walk(
                                                         next_in_bin,
                                                         reach,
                                                         box,
+                                                        walls,
                                                     )
                                                     if res == CANDIDATE_OK:
                                                         return True
@@ -1366,8 +1658,458 @@ def probe_walk(
                                                         exposed,
                                                         reach,
                                                         box,
+                                                        walls,
                                                     ):
                                                         return True
+                                        j = next_in_bin[j]
+                    i = next_in_bin[i]
+    return False
+
+
+# --- walls in the exact test ----------------------------------------------------------------------------------
+#
+# A wall inflated by rho is the half-space g < rho (g = n . x - d, ``plane_value``): its boundary, the offset plane
+# g = rho, is one more surface of the union whose critical points are the candidates. Faces: x projected onto the
+# offset plane; edges: the circle where it meets an inflated sphere, the line where two offset planes meet; vertices:
+# where it meets two inflated spheres, or a sphere and another offset plane, and where three offset planes meet.
+# A candidate's own walls are tagged ``WALL_TAG - w`` among its defining spheres.
+
+
+@wp.func
+def wall_normal(pl: wp.vec4) -> wp.vec3d:
+    return wp.vec3d(wp.float64(pl[0]), wp.float64(pl[1]), wp.float64(pl[2]))
+
+
+@wp.func
+def wall_near(x: wp.vec3d, pl: wp.vec4, rho: wp.float64) -> wp.bool:
+    """The wall's offset plane passes within rho of x (with slack: the normal is unit to float32 rounding), so it
+    can carry a candidate within rho of x (a pruning; the distance test decides)."""
+    return wp.abs(plane_value(pl, x) - rho) <= rho * (wp.float64(1.0) + WALL_SLACK)
+
+
+@wp.func
+def wall_face_point(x: wp.vec3d, pl: wp.vec4, rho: wp.float64) -> wp.vec3d:
+    """x projected onto the wall's offset plane ``n . z - d = rho``."""
+    n = wall_normal(pl)
+    return x - n * ((plane_value(pl, x) - rho) / dot3(n, n))
+
+
+@wp.func
+def wall_circle_point(x: wp.vec3d, c: wp.vec3d, big: wp.float64, pl: wp.vec4, rho: wp.float64) -> wp.vec4d:
+    """The point nearest to x on the circle where the inflated sphere (c, big) meets the wall's offset plane, and 1
+    in the last component; 0 there when they do not meet in a circle. On the circle's axis every point is as near:
+    the one toward the coordinate axis along which the normal is smallest."""
+    out = wp.vec4d(0.0)
+    n = wall_normal(pl)
+    nn = dot3(n, n)
+    gc = plane_value(pl, c) - rho
+    rc2 = big * big - (gc * gc) / nn
+    if not (rc2 > wp.float64(0.0)):
+        return out
+    m = c - n * (gc / nn)
+    q = x - m
+    qp = q - n * (dot3(q, n) / nn)
+    qp2 = dot3(qp, qp)
+    if qp2 == wp.float64(0.0):
+        b = int(0)
+        if wp.abs(n[1]) < wp.abs(n[b]):
+            b = 1
+        if wp.abs(n[2]) < wp.abs(n[b]):
+            b = 2
+        unit = wp.vec3d(0.0)
+        unit[b] = wp.float64(1.0)
+        qp = cross3(n, unit)
+        qp2 = dot3(qp, qp)
+    z = m + qp * wp.sqrt(rc2 / qp2)
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
+def wall_line_point(x: wp.vec3d, p1: wp.vec4, p2: wp.vec4, rho: wp.float64) -> wp.vec4d:
+    """The point nearest to x on the line where two walls' offset planes meet, and 1 in the last component (0 when
+    the walls are parallel): ``z = x + al n1 + be n2`` with ``n_k . z - d_k = rho``."""
+    out = wp.vec4d(0.0)
+    n1 = wall_normal(p1)
+    n2 = wall_normal(p2)
+    a11 = dot3(n1, n1)
+    a12 = dot3(n1, n2)
+    a22 = dot3(n2, n2)
+    det = a11 * a22 - a12 * a12
+    if not (det > wp.float64(0.0)):
+        return out
+    e1 = rho - plane_value(p1, x)
+    e2 = rho - plane_value(p2, x)
+    al = (e1 * a22 - e2 * a12) / det
+    be = (e2 * a11 - e1 * a12) / det
+    z = x + n1 * al + n2 * be
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
+def ball_planes_points(
+    ci: wp.vec3d, bi2: wp.float64, e1: wp.vec3d, b1: wp.float64, e2: wp.vec3d, b2: wp.float64
+) -> wp.mat33d:
+    """The two points ``ci + u`` with ``|u|^2 = bi2``, ``e1 . u = b1`` and ``e2 . u = b2`` (a sphere and two planes,
+    as ``vertex_points`` solves it), as rows 0 and 1, and (1, 0, 0) in row 2; row 2 is 0 when there are none."""
+    out = wp.mat33d(0.0)
+    a11 = dot3(e1, e1)
+    a12 = dot3(e1, e2)
+    a22 = dot3(e2, e2)
+    det = a11 * a22 - a12 * a12
+    if not (det > wp.float64(0.0)):
+        return out
+    al = (b1 * a22 - b2 * a12) / det
+    be = (b2 * a11 - b1 * a12) / det
+    w0 = e1 * al + e2 * be
+    nrm = cross3(e1, e2)
+    nn = dot3(nrm, nrm)
+    if not (nn > wp.float64(0.0)):
+        return out
+    g2 = (bi2 - dot3(w0, w0)) / nn
+    if not (g2 >= wp.float64(0.0)):
+        return out
+    g = wp.sqrt(g2)
+    base = ci + w0
+    z1 = base + nrm * g
+    z2 = base - nrm * g
+    return wp.mat33d(z1[0], z1[1], z1[2], z2[0], z2[1], z2[2], wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))
+
+
+@wp.func
+def walls_corner(p1: wp.vec4, p2: wp.vec4, p3: wp.vec4, rho: wp.float64) -> wp.vec4d:
+    """The point where three walls' offset planes meet (Cramer's rule), and 1 in the last component (0 when two of
+    them are parallel)."""
+    out = wp.vec4d(0.0)
+    n1 = wall_normal(p1)
+    n2 = wall_normal(p2)
+    n3 = wall_normal(p3)
+    c23 = cross3(n2, n3)
+    det = dot3(n1, c23)
+    if det == wp.float64(0.0) or not wp.isfinite(det):
+        return out
+    z = (
+        c23 * (wp.float64(p1[3]) + rho)
+        + cross3(n3, n1) * (wp.float64(p2[3]) + rho)
+        + cross3(n1, n2) * (wp.float64(p3[3]) + rho)
+    ) / det
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
+def walls_allow(z: wp.vec3d, i: wp.int32, j: wp.int32, k: wp.int32, walls: LampWalls, rho: wp.float64) -> wp.bool:
+    """z keeps rho from every wall but its own (tags i, j, k): ``g >= rho``."""
+    for w in range(walls.n):
+        tag = WALL_TAG - w
+        if i != tag and j != tag and k != tag:
+            if plane_value(walls.frame[w], z) < rho:
+                return False
+    return True
+
+
+@wp.func
+def walls_fluid(x: wp.vec3d, walls: LampWalls, rho: wp.float64) -> wp.bool:
+    """The virtual fluid beyond the box: x lies within rho of the convex set C of points that keep rho from every
+    wall (``g >= rho``), spheres aside. Exact: x in C, or the nearest point of C, on a face, an edge or a vertex
+    of C (a wall's face point, two walls' line point, three walls' corner) that lies in C and within rho. Without
+    walls, everywhere; with one wall, where ``g >= 0`` (to the rounding of its unit normal); where walls meet, less
+    their fillet of radius rho, as the voxels along an axis that no wall cuts see it."""
+    rho2 = rho * rho
+    inside = bool(True)
+    for w in range(walls.n):
+        g = plane_value(walls.frame[w], x)
+        if g < wp.float64(0.0):
+            return False
+        if g < rho:
+            inside = False
+    if inside:
+        return True
+    for w in range(walls.n):
+        p1 = walls.frame[w]
+        z = wall_face_point(x, p1, rho)
+        e = x - z
+        if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, -1, -1, walls, rho):
+            return True
+        for v in range(w + 1, walls.n):
+            p2 = walls.frame[v]
+            lp = wall_line_point(x, p1, p2, rho)
+            if lp[3] != wp.float64(0.0):
+                z = wp.vec3d(lp[0], lp[1], lp[2])
+                e = x - z
+                if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, WALL_TAG - v, -1, walls, rho):
+                    return True
+            for u in range(v + 1, walls.n):
+                cp = walls_corner(p1, p2, walls.frame[u], rho)
+                if cp[3] != wp.float64(0.0):
+                    z = wp.vec3d(cp[0], cp[1], cp[2])
+                    e = x - z
+                    if dot3(e, e) <= rho2 and walls_allow(z, WALL_TAG - w, WALL_TAG - v, WALL_TAG - u, walls, rho):
+                        return True
+    return False
+
+
+@wp.func
+def virtual_point(i: wp.int32, j: wp.int32, k: wp.int32, box: WetBox) -> wp.vec3d:
+    """The voxel centre (i, j, k), also beyond the box."""
+    return wp.vec3d(voxel_centre(i, box.h[0]), voxel_centre(j, box.h[1]), voxel_centre(k, box.h[2]))
+
+
+@wp.func
+def virtual_word(walls: LampWalls, w: wp.int32, at: wp.vec3i, box: WetBox) -> wp.uint32:
+    """Word w of the virtual samples on the row (at[1], at[2]) beyond the box (x = 32 w + b): the virtual fluid
+    (``walls_fluid``), at the voxels of the word."""
+    out = wp.uint32(0)
+    m = row_mask(box, w)
+    for b in range(32):
+        if ((m >> wp.uint32(b)) & wp.uint32(1)) != wp.uint32(0):
+            if walls_fluid(virtual_point(32 * w + b, at[1], at[2], box), walls, box.rho):
+                out = out | (wp.uint32(1) << wp.uint32(b))
+    return out
+
+
+@wp.func
+def try_candidate(
+    x: wp.vec3d,
+    z: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    k: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """z is within rho of x and a valid candidate (``candidate_check``)."""
+    w = x - z
+    if not (dot3(w, w) <= box.rho * box.rho):
+        return False
+    res = candidate_check(x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    return res == CANDIDATE_OK
+
+
+@wp.func
+def walls_only_candidates(
+    x: wp.vec3d,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """Candidates on walls alone: their faces, the lines of pairs, the corners of triples (on lines within rho)."""
+    rho = box.rho
+    for w in range(walls.n):
+        p1 = walls.frame[w]
+        if wall_near(x, p1, rho):
+            z = wall_face_point(x, p1, rho)
+            if try_candidate(x, z, WALL_TAG - w, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+                return True
+    for w in range(walls.n):
+        p1 = walls.frame[w]
+        if wall_near(x, p1, rho):
+            for v in range(w + 1, walls.n):
+                p2 = walls.frame[v]
+                if wall_near(x, p2, rho):
+                    lp = wall_line_point(x, p1, p2, rho)
+                    if lp[3] != wp.float64(0.0):
+                        z = wp.vec3d(lp[0], lp[1], lp[2])
+                        t1 = WALL_TAG - w
+                        t2 = WALL_TAG - v
+                        if try_candidate(
+                            x, z, t1, t2, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                        ):
+                            return True
+                        e = x - z
+                        if dot3(e, e) <= rho * rho * (wp.float64(1.0) + SLACK):
+                            for u in range(v + 1, walls.n):
+                                p3 = walls.frame[u]
+                                if wall_near(x, p3, rho):
+                                    cp = walls_corner(p1, p2, p3, rho)
+                                    if cp[3] != wp.float64(0.0):
+                                        z = wp.vec3d(cp[0], cp[1], cp[2])
+                                        t3 = WALL_TAG - u
+                                        if try_candidate(
+                                            x,
+                                            z,
+                                            t1,
+                                            t2,
+                                            t3,
+                                            rmax,
+                                            positions,
+                                            radii,
+                                            heads,
+                                            next_in_bin,
+                                            reach,
+                                            box,
+                                            walls,
+                                        ):
+                                            return True
+    return False
+
+
+@wp.func
+def wall_sphere_candidates(
+    x: wp.vec3d,
+    i: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """Candidates on sphere i and walls: the circles where it meets each wall's offset plane, and the points where
+    it meets two of them (on circles within rho)."""
+    rho = box.rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    for w in range(walls.n):
+        p1 = walls.frame[w]
+        if wall_near(x, p1, rho):
+            cp = wall_circle_point(x, ci, big_i, p1, rho)
+            if cp[3] != wp.float64(0.0):
+                z = wp.vec3d(cp[0], cp[1], cp[2])
+                t1 = WALL_TAG - w
+                if try_candidate(x, z, i, t1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+                    return True
+                e = x - z
+                if dot3(e, e) <= rho * rho * (wp.float64(1.0) + SLACK):
+                    for v in range(w + 1, walls.n):
+                        p2 = walls.frame[v]
+                        if wall_near(x, p2, rho):
+                            vp = ball_planes_points(
+                                ci,
+                                big_i * big_i,
+                                wall_normal(p1),
+                                rho - plane_value(p1, ci),
+                                wall_normal(p2),
+                                rho - plane_value(p2, ci),
+                            )
+                            if vp[2, 0] != wp.float64(0.0):
+                                for t in range(2):
+                                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                                    if try_candidate(
+                                        x,
+                                        z,
+                                        i,
+                                        t1,
+                                        WALL_TAG - v,
+                                        rmax,
+                                        positions,
+                                        radii,
+                                        heads,
+                                        next_in_bin,
+                                        reach,
+                                        box,
+                                        walls,
+                                    ):
+                                        return True
+    return False
+
+
+@wp.func
+def wall_pair_candidates(
+    x: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """Candidates where inflated spheres i < j meet a wall's offset plane (on their circle, when it passes within
+    rho of x)."""
+    rho = box.rho
+    ci = centre_of(i, positions)
+    cj = centre_of(j, positions)
+    big_i = wp.float64(radii[i]) + rho
+    big_j = wp.float64(radii[j]) + rho
+    cp = circle_point(x, ci, big_i, cj, big_j)
+    if cp[3] == wp.float64(0.0):
+        return False
+    e = x - wp.vec3d(cp[0], cp[1], cp[2])
+    if not (dot3(e, e) <= rho * rho * (wp.float64(1.0) + SLACK)):
+        return False
+    bi2 = big_i * big_i
+    e1 = cj - ci
+    b1 = ((bi2 - big_j * big_j) + dot3(e1, e1)) * wp.float64(0.5)
+    for w in range(walls.n):
+        pl = walls.frame[w]
+        if wall_near(x, pl, rho):
+            vp = ball_planes_points(ci, bi2, e1, b1, wall_normal(pl), rho - plane_value(pl, ci))
+            if vp[2, 0] != wp.float64(0.0):
+                for t in range(2):
+                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                    if try_candidate(
+                        x, z, i, j, WALL_TAG - w, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                    ):
+                        return True
+    return False
+
+
+@wp.func
+def wall_search(
+    x: wp.vec3d,
+    ids: NearList,
+    cnt: wp.int32,
+    listed: wp.int32,
+    span: BinSpan,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """``probe_reaches``'s candidates that involve a wall: on walls alone, then with the near spheres, from its list
+    (``listed`` 1, spheres in increasing index order; a pruned sphere's candidates lie in another ball) or by
+    walking the bins (``listed`` 0: exposed spheres within r + 2 rho of x, pairs i < j)."""
+    if walls.n == 0:
+        return False
+    if walls_only_candidates(x, rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+        return True
+    if listed != 0:
+        for a in range(cnt):
+            i = ids[a]
+            if wall_sphere_candidates(x, i, rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+                return True
+            for b in range(a + 1, cnt):
+                if wall_pair_candidates(x, i, ids[b], rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+                    return True
+        return False
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
+                while i >= 0:
+                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                        if wall_sphere_candidates(x, i, rmax, positions, radii, heads, next_in_bin, reach, box, walls):
+                            return True
+                        for bz2 in range(span.lo[2], span.hi[2] + 1):
+                            for by2 in range(span.lo[1], span.hi[1] + 1):
+                                for bx2 in range(span.lo[0], span.hi[0] + 1):
+                                    j = bin_head(bx2, by2, bz2, box, heads)
+                                    while j >= 0:
+                                        if j > i and exposed[j] != 0 and gate_ok(x, j, positions, radii, box):
+                                            if wall_pair_candidates(
+                                                x, i, j, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                                            ):
+                                                return True
                                         j = next_in_bin[j]
                     i = next_in_bin[i]
     return False
@@ -1385,17 +2127,22 @@ def probe_reaches(
     exposed: wp.array[wp.int32],
     reach: wp.array[wp.uint32],
     box: WetBox,
+    walls: LampWalls,
 ) -> wp.bool:
     """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
     ``lattice`` 0: a voxel centre's own reach is the connectivity's), the radial projections of x onto the
     inflated spheres, the points nearest to x on their pairwise circles, and their triple points (pairs and triples
-    in increasing index order, triples only on circles that pass within rho). Only exposed spheres
-    (``wet_expose``) within r + 2 rho of x can carry a reachable candidate within rho. For a voxel centre the caller
-    has checked the solid map (``|x - c|^2 < r^2``); for another point it is checked here."""
+    in increasing index order, triples only on circles that pass within rho); then those with walls
+    (``wall_search``). Only exposed spheres (``wet_expose``) within r + 2 rho of x can carry a reachable candidate
+    within rho. For a voxel centre the caller has checked the solid map (``|x - c|^2 < r^2`` or ``g < 0``); for
+    another point it is checked here."""
     rho = box.rho
     rho2 = rho * rho
     if lattice == 0:
+        for wi in range(walls.n):
+            if plane_value(walls.frame[wi], x) < wp.float64(0.0):
+                return False
         span = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
         for bz in range(span.lo[2], span.hi[2] + 1):
             for by in range(span.lo[1], span.hi[1] + 1):
@@ -1408,7 +2155,7 @@ def probe_reaches(
                             return False
                         q = next_in_bin[q]
         if (
-            candidate_check(x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box)
+            candidate_check(x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
             == CANDIDATE_OK
         ):
             return True
@@ -1463,7 +2210,11 @@ def probe_reaches(
                                 cnt += 1
                         i = next_in_bin[i]
         if cnt > limit:
-            return probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box)
+            if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+                return True
+            return wall_search(
+                x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+            )
     kept = wp.uint64(0)
     for a in range(cnt):
         covered = int(0)
@@ -1503,7 +2254,9 @@ def probe_reaches(
             z = c + v * ((wp.float64(radii[i]) + rho) / wp.sqrt(d2))
             w = x - z
             if dot3(w, w) <= rho2:
-                res = candidate_check(x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box)
+                res = candidate_check(
+                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                )
                 if res == CANDIDATE_OK:
                     return True
                 if res >= 0:
@@ -1523,7 +2276,9 @@ def probe_reaches(
                 w = x - z
                 e2 = dot3(w, w)
                 if e2 <= rho2:
-                    res = candidate_check(x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box)
+                    res = candidate_check(
+                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                    )
                     if res == CANDIDATE_OK:
                         return True
                     if res >= 0:
@@ -1538,13 +2293,26 @@ def probe_reaches(
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check(
-                                        x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box
+                                        x,
+                                        z,
+                                        i,
+                                        j,
+                                        k,
+                                        hint,
+                                        rmax,
+                                        positions,
+                                        radii,
+                                        heads,
+                                        next_in_bin,
+                                        reach,
+                                        box,
+                                        walls,
                                     )
                                     if res == CANDIDATE_OK:
                                         return True
                                     if res >= 0:
                                         hint = res
-    return False
+    return wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
 
 
 @wp.kernel
@@ -1601,6 +2369,7 @@ def wet_classify(
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
     box: WetBox,
+    walls: LampWalls,
     reach: wp.array[wp.uint32],
     band: wp.array[wp.uint32],
     solid: wp.array[wp.uint32],
@@ -1639,7 +2408,7 @@ def wet_classify(
             (wp.float64(wjk[2]) + wp.float64(0.5)) * box.h[2],
         )
         tested += 1
-        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
     if add != wp.uint32(0):
@@ -1700,15 +2469,22 @@ def thin_chord(
 
 @wp.func
 def fluid_sample(
-    a: wp.int32, m: wp.int32, iu: wp.int32, iv: wp.int32, fluid: wp.array[wp.uint32], box: WetBox
+    a: wp.int32,
+    m: wp.int32,
+    iu: wp.int32,
+    iv: wp.int32,
+    fluid: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
 ) -> wp.bool:
-    """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are."""
-    if m < 0 or m >= box.n[a]:
-        return True
+    """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are the virtual fluid
+    (``walls_fluid``: all of them without walls)."""
     ijk = wp.vec3i(0)
     ijk[a] = m
     ijk[(a + 1) % 3] = iu
     ijk[(a + 2) % 3] = iv
+    if m < 0 or m >= box.n[a]:
+        return walls_fluid(virtual_point(ijk[0], ijk[1], ijk[2], box), walls, box.rho)
     word = fluid[word_at(box, ijk[0] / 32, ijk[1], ijk[2])]
     return ((word >> wp.uint32(ijk[0] % 32)) & wp.uint32(1)) != wp.uint32(0)
 
@@ -1737,6 +2513,7 @@ def wet_thin(
     radii: wp.array[wp.float32],
     active: wp.array[wp.int32],
     box: WetBox,
+    walls: LampWalls,
     fluid: wp.array[wp.uint32],
     reach: wp.array[wp.uint32],
     heads: wp.array[wp.int32],
@@ -1786,7 +2563,9 @@ def wet_thin(
             if me.ok == 0:
                 continue
             m0 = me.m0
-            if not (fluid_sample(a, m0, iu, iv, fluid, box) and fluid_sample(a, m0 + 1, iu, iv, fluid, box)):
+            if not (
+                fluid_sample(a, m0, iu, iv, fluid, box, walls) and fluid_sample(a, m0 + 1, iu, iv, fluid, box, walls)
+            ):
                 continue
             # Every thin chord between these samples has its centre within r_max + h_a of the face point.
             g0 = row_point(a, wp.float64(m0 + 1) * box.h[a], iu, iv, box)
@@ -1811,7 +2590,7 @@ def wet_thin(
                     continue
                 wp.atomic_add(diag, DIAG_GAPS, 1)
                 gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
-                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                     continue
             # This chord starts a merged interval: walk the chords after it in order while they join it.
             cur = me.hi
@@ -1841,7 +2620,9 @@ def wet_thin(
                     if nxt_lo > cur:
                         wp.atomic_add(diag, DIAG_GAPS, 1)
                         gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
-                        if probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box):
+                        if probe_reaches(
+                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+                        ):
                             join = 0
                     if join != 0:
                         if nxt_hi > cur or (nxt_hi == cur and nxt < end):

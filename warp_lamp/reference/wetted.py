@@ -17,6 +17,18 @@ point. It restates the mode's definition and imports nothing from the modules it
   and **thin chords**: sphere chords that hold no voxel centre, between two fluid samples of a row, merged where
   they overlap or where the gap between them is dry (the exact test at the gap's midpoint), each merged interval an
   entry (to the sphere that starts it) and an exit (to the one that reaches furthest).
+- **Walls** (planes ``g(x) = n . x - d``, the fluid where g > 0, as the kernels read them: float32 frame planes
+  evaluated in float64 as ``((n0 x0 + n1 x1) + n2 x2) - d``): the probe centre keeps ``g >= rho`` (blocked where
+  ``g < rho``), a voxel centre with ``g < 0`` is solid; beyond the box the lattice points with ``g >= rho`` for every
+  wall are allowed and reached (all of them, whatever their connection), and the virtual samples within rho of
+  those points (spheres aside: the walls' own fluid; ``g >= 0`` for one wall) are fluid. The offset plane g = rho
+  is one more surface of the union whose critical points are the candidates: its faces, its circles with inflated
+  spheres, the lines of two walls, and the points of a wall with two spheres, of two walls with a sphere, of three
+  walls. A sphere wholly inside a wall (``g(c) + r < 0``) is part of the wall: never an owner. A crossing whose dry
+  voxel lies inside walls (``g < 0``) goes to the one of them with the smallest ``g(p)`` when that is below the
+  nearest sphere's ``|p - c| - r`` or no sphere lies within the attribution bound; one with no sphere within the
+  bound goes to the nearest wall (smallest g(p)); only walls whose normal has a component along the row's axis
+  take crossings.
 
 Each decision is the same float64 expression the kernels evaluate, so on inputs that float32 holds exactly (frame
 coordinates and radii) the two agree bitwise. Where the kernels' float32 inputs could tip a decision (a voxel
@@ -38,6 +50,7 @@ __all__ = [
     "attribution_bound",
     "band_radius",
     "dilation_table",
+    "frame_walls",
     "voxel_diagonal",
     "wetted_reference",
 ]
@@ -65,14 +78,20 @@ class WettedReference:
             (decided by the offset tables; a float32 distance test could differ here).
         crossings: Per axis a, a dict of equal-length arrays: ``u``, ``v`` (the ray's lamp cell), ``face`` (index
             along a, 0..n_a, between voxels face-1 and face), ``enters`` (fluid to dry going +a), ``owner``
-            (nearest sphere, -1 if none), ``distance`` (its |p - c| - r [m]), ``near_tie`` (a runner-up within
-            float32 input rounding).
+            (nearest sphere, -1 if none or if a wall took it), ``wall`` (the wall that took it, -1 if none),
+            ``distance`` (the nearest sphere's |p - c| - r [m]), ``near_tie`` (a runner-up within float32 input
+            rounding).
         thin: Per axis a, a dict of equal-length arrays, one entry per merged thin dry interval: ``u``, ``v``,
             ``face`` (between the samples face-1 and face), ``entry`` and ``exit`` (their spheres).
         thin_faces: Per axis a, thin intervals per ray and face, shape (n_u, n_v, n_a + 1).
         ray_crossings: Per axis a, fluid-to-dry crossings per ray (thin ones included), shape (n_u, n_v).
+        virtual: Per axis a, whether each ray's virtual samples just before and after the box are fluid, shape
+            (n_u, n_v, 2): the particles' and walls' counts on axis a sum to ``virtual[a][..., 0].sum() -
+            virtual[a][..., 1].sum()`` with both lamps on.
         counts: Signed per-particle per-axis counts, (N, 3) int64 (lamps that are off left out).
         hits: Crossings attributed per particle, (N,) int64 (lamps that are off left out).
+        wall_counts: Signed counts per wall and axis, (W, 3) int64 (lamps that are off left out).
+        walls: The walls' planes in the frame as the kernels read them (float32 values), (W, 4).
         bound: :func:`attribution_bound` per axis [m].
         uncertain: Band voxels that the dilation by rho left dry and that are not solid (given the exact test).
         rescued: Of those, the ones found fluid.
@@ -95,8 +114,11 @@ class WettedReference:
     thin: dict
     thin_faces: dict
     ray_crossings: dict
+    virtual: dict
     counts: np.ndarray
     hits: np.ndarray
+    wall_counts: np.ndarray
+    walls: np.ndarray
     bound: np.ndarray
     uncertain: int
     rescued: int
@@ -164,9 +186,9 @@ def dilation_table(h, rho) -> np.ndarray:
 # --- voxel maps --------------------------------------------------------------------------------------------------
 
 
-def _rasterize(local, r, rho, n, h):
-    """Allowed (no ``(dx dx + dy dy) + dz dz < (r + rho)^2``, dx = (i + 1/2) hx - cx), its rounding flags, and
-    solid (``... < r^2``)."""
+def _rasterize(local, r, rho, n, h, planes):
+    """Allowed (no ``(dx dx + dy dy) + dz dz < (r + rho)^2``, dx = (i + 1/2) hx - cx, and ``g >= rho`` for every
+    wall), its rounding flags, and solid (``... < r^2``, or ``g < 0`` for a wall)."""
     blocked = np.zeros(tuple(n), dtype=bool)
     solid = np.zeros(tuple(n), dtype=bool)
     near = np.zeros(tuple(n), dtype=bool)
@@ -193,39 +215,52 @@ def _rasterize(local, r, rho, n, h):
         blocked[tuple(sl)] |= d2 < big2
         solid[tuple(sl)] |= d2 < r[k] * r[k]
         near[tuple(sl)] |= np.abs(np.sqrt(d2) - big) <= tol
+    if len(planes):
+        g = _plane(planes, _centres(np.indices(tuple(n)).transpose(1, 2, 3, 0), h))
+        blocked |= np.any(g < rho, axis=-1)
+        solid |= np.any(g < 0.0, axis=-1)
     return ~blocked, near, solid
 
 
-def _reachable(allowed):
+def _reachable(allowed, planes, h, rho):
+    """Allowed voxels 6-connected to an allowed lattice point beyond the box (each of those is reached: the
+    outside is, where it keeps rho from every wall)."""
     from scipy import ndimage
 
-    padded = np.pad(allowed, 1, constant_values=True)  # the outside: allowed and connected all round
+    padded = _padded(allowed, planes, h, (1, 1, 1), rho)
     labels, _ = ndimage.label(padded)  # default structure: 6-connectivity
-    return (labels == labels[0, 0, 0])[1:-1, 1:-1, 1:-1]
+    ring = padded.copy()
+    ring[1:-1, 1:-1, 1:-1] = False
+    seeds = np.unique(labels[ring])
+    return np.isin(labels, seeds[seeds > 0])[1:-1, 1:-1, 1:-1]
 
 
-def _dilate(reachable, h, radius, table):
-    """Voxels within ``radius`` of a reached voxel or of the outside, by scipy's exact Euclidean distance transform.
+def _dilate(reachable, h, radius, table, planes, rho):
+    """Voxels within ``radius`` of a reached voxel or of a reached point beyond the box (``g >= rho`` for every
+    wall), by scipy's exact Euclidean distance transform on the box padded by the table's widths.
 
     The EDT's nearest reached voxel decides wherever its distance is clearly off the radius; within 1e-9 of it the
     offset set decides, by brute force over its offsets, so the answer is the table's, exactly.
     """
     from scipy import ndimage
 
-    padded = np.pad(reachable, 1, constant_values=True)
+    wy, wz = table.shape[0] - 1, table.shape[1] - 1
+    wx = int(table.max())
+    # Without walls the nearest reached point beyond the box is on its first layer; with walls it may lie deeper.
+    pad = (1, 1, 1) if len(planes) == 0 else (wx + 1, wy + 1, wz + 1)
+    padded = _padded(reachable, planes, h, pad, rho)
+    inner = tuple(slice(p, -p) for p in pad)
     dist, idx = ndimage.distance_transform_edt(~padded, sampling=h, return_indices=True)
-    dist = dist[1:-1, 1:-1, 1:-1]
-    own = np.indices(padded.shape)[:, 1:-1, 1:-1, 1:-1]
-    off = np.moveaxis(idx[:, 1:-1, 1:-1, 1:-1] - own, 0, -1)
+    dist = dist[inner]
+    own = np.indices(padded.shape)[(slice(None), *inner)]
+    off = np.moveaxis(idx[(slice(None), *inner)] - own, 0, -1)
     out = _offset_inside(off, h, radius)
     near = np.abs(dist - radius) <= 1e-9 * (radius + float(np.max(h)))
     if near.any():
-        wy, wz = table.shape[0] - 1, table.shape[1] - 1
-        wx = int(table.max())
         offs = np.stack(np.meshgrid(*(np.arange(-w, w + 1) for w in (wx, wy, wz)), indexing="ij"), axis=-1)
         offs = offs.reshape(-1, 3)
         offs = offs[_offset_inside(offs, h, radius)]
-        big = np.pad(reachable, ((wx, wx), (wy, wy), (wz, wz)), constant_values=True)
+        big = _padded(reachable, planes, h, (wx, wy, wz), rho)
         pts = np.argwhere(near)
         hit = np.zeros(len(pts), dtype=bool)
         for o in offs:
@@ -252,6 +287,161 @@ def _cross(a, b):
         ],
         axis=-1,
     )
+
+
+def _plane(planes, x):
+    """``g = ((n0 x0 + n1 x1) + n2 x2) - d`` for every wall (rows of planes (W, 4)) at every point x (..., 3):
+    shape (..., W)."""
+    n = planes[:, :3]
+    x = np.asarray(x, dtype=np.float64)[..., None, :]
+    return ((n[:, 0] * x[..., 0] + n[:, 1] * x[..., 1]) + n[:, 2] * x[..., 2]) - planes[:, 3]
+
+
+def _centres(idx, h):
+    """Voxel centres (i + 1/2) h of integer indices (..., 3), also beyond the box."""
+    return (np.asarray(idx, dtype=np.float64) + 0.5) * h
+
+
+def _outside_ok(planes, idx, h, thr):
+    """Lattice points (voxel centres of any index) with ``g >= thr`` for every wall, shape idx.shape[:-1]."""
+    if len(planes) == 0:
+        return np.ones(np.asarray(idx).shape[:-1], dtype=bool)
+    return np.all(_plane(planes, _centres(idx, h)) >= thr, axis=-1)
+
+
+def _padded(inside, planes, h, pad, thr):
+    """``inside`` (nx, ny, nz) padded by ``pad`` (per axis) with the lattice points beyond the box that pass the
+    walls (``g >= thr`` for every wall; all of them without walls)."""
+    pad = [int(p) for p in pad]
+    out = np.pad(inside, [(p, p) for p in pad], constant_values=True)
+    if len(planes):
+        shape = out.shape
+        idx = np.stack(np.meshgrid(*(np.arange(shape[a]) - pad[a] for a in range(3)), indexing="ij"), axis=-1)
+        beyond = np.ones(shape, dtype=bool)
+        beyond[pad[0] : shape[0] - pad[0], pad[1] : shape[1] - pad[1], pad[2] : shape[2] - pad[2]] = False
+        out[beyond] = _outside_ok(planes, idx[beyond], h, thr)
+    return out
+
+
+def _walls_fluid(planes, x, rho):
+    """The virtual fluid beyond the box at points x (M, 3): within rho of the convex set of points with ``g >= rho``
+    for every wall, decided at its nearest point (x itself, a wall's face point, two walls' line point, three walls'
+    corner), which must keep rho from the other walls. Everywhere without walls."""
+    x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
+    m, nw = len(x), len(planes)
+    if nw == 0:
+        return np.ones(m, dtype=bool)
+    rho2 = rho * rho
+    g = _plane(planes, x)
+    out = np.all(g >= rho, axis=1)
+    n = planes[:, :3]
+    tags = np.arange(nw)
+
+    def valid(z, own):
+        gz = _plane(planes, z)
+        return np.all((gz >= rho) | np.isin(tags, own)[None, :], axis=1) & (_dot(x - z, x - z) <= rho2)
+
+    for w in range(nw):
+        z = x - n[w] * ((g[:, w] - rho) / _dot(n[w], n[w]))[:, None]
+        out |= valid(z, [w])
+    for w in range(nw):
+        for v in range(w + 1, nw):
+            n1, n2 = n[w], n[v]
+            a11, a12, a22 = _dot(n1, n1), _dot(n1, n2), _dot(n2, n2)
+            det = a11 * a22 - a12 * a12
+            if det > 0.0:
+                e1 = rho - g[:, w]
+                e2 = rho - g[:, v]
+                al = (e1 * a22 - e2 * a12) / det
+                be = (e2 * a11 - e1 * a12) / det
+                out |= valid((x + n1 * al[:, None]) + n2 * be[:, None], [w, v])
+            for u in range(v + 1, nw):
+                z, ok = _walls_corners(planes[w : w + 1], planes[v : v + 1], planes[u : u + 1], rho)
+                if ok[0]:
+                    out |= valid(np.broadcast_to(z, x.shape), [w, v, u])
+    return out & np.all(g >= 0.0, axis=1)
+
+
+def _wall_faces(x, planes, rho):
+    """x projected onto every wall's offset plane g = rho, (W, 3)."""
+    n = planes[:, :3]
+    return x - n * ((_plane(planes, x) - rho) / _dot(n, n))[:, None]
+
+
+def _wall_circle_points(x, c, big, planes, rho):
+    """Per row (sphere (c, big), wall plane): the point nearest to x on the circle where the inflated sphere meets
+    the offset plane, and whether they meet in a circle (on the circle's axis: toward the coordinate axis along
+    which the normal is smallest)."""
+    n = planes[:, :3]
+    nn = _dot(n, n)
+    gc = ((n[:, 0] * c[:, 0] + n[:, 1] * c[:, 1]) + n[:, 2] * c[:, 2]) - planes[:, 3] - rho
+    rc2 = big * big - (gc * gc) / nn
+    ok = rc2 > 0.0
+    m = c - n * (gc / nn)[:, None]
+    q = x - m
+    qp = q - n * (_dot(q, n) / nn)[:, None]
+    qp2 = _dot(qp, qp)
+    for row in np.flatnonzero((qp2 == 0.0) & ok):
+        nr = n[row]
+        b = 0
+        if abs(nr[1]) < abs(nr[b]):
+            b = 1
+        if abs(nr[2]) < abs(nr[b]):
+            b = 2
+        qp[row] = _cross(nr, np.eye(3)[b])
+        qp2[row] = _dot(qp[row], qp[row])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = m + qp * np.sqrt(rc2 / qp2)[:, None]
+    return z, ok
+
+
+def _wall_line_points(x, p1, p2, rho):
+    """Per row (two walls): the point nearest to x on the line where their offset planes meet, and whether they do
+    (not parallel)."""
+    n1, n2 = p1[:, :3], p2[:, :3]
+    a11, a12, a22 = _dot(n1, n1), _dot(n1, n2), _dot(n2, n2)
+    det = a11 * a22 - a12 * a12
+    ok = det > 0.0
+    dets = np.where(ok, det, 1.0)
+    e1 = rho - (((n1[:, 0] * x[0] + n1[:, 1] * x[1]) + n1[:, 2] * x[2]) - p1[:, 3])
+    e2 = rho - (((n2[:, 0] * x[0] + n2[:, 1] * x[1]) + n2[:, 2] * x[2]) - p2[:, 3])
+    al = (e1 * a22 - e2 * a12) / dets
+    be = (e2 * a11 - e1 * a12) / dets
+    return (x + n1 * al[:, None]) + n2 * be[:, None], ok
+
+
+def _ball_planes_points(ci, bi2, e1, b1, e2, b2):
+    """Per row: the two points ``ci + u`` with ``|u|^2 = bi2``, ``e1 . u = b1``, ``e2 . u = b2``, and whether they
+    exist."""
+    a11, a12, a22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+    det = a11 * a22 - a12 * a12
+    ok = det > 0.0
+    dets = np.where(ok, det, 1.0)
+    al = (b1 * a22 - b2 * a12) / dets
+    be = (b2 * a11 - b1 * a12) / dets
+    w0 = e1 * al[:, None] + e2 * be[:, None]
+    nrm = _cross(e1, e2)
+    nn = _dot(nrm, nrm)
+    ok &= nn > 0.0
+    g2 = (bi2 - _dot(w0, w0)) / np.where(ok, nn, 1.0)
+    ok &= g2 >= 0.0
+    g = np.sqrt(np.where(ok, g2, 0.0))
+    base = ci + w0
+    return base + nrm * g[:, None], base - nrm * g[:, None], ok
+
+
+def _walls_corners(p1, p2, p3, rho):
+    """Per row (three walls): the point where their offset planes meet, and whether it exists."""
+    n1, n2, n3 = p1[:, :3], p2[:, :3], p3[:, :3]
+    c23 = _cross(n2, n3)
+    det = _dot(n1, c23)
+    ok = (det != 0.0) & np.isfinite(det)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = (
+            (c23 * (p1[:, 3] + rho)[:, None] + _cross(n3, n1) * (p2[:, 3] + rho)[:, None])
+            + _cross(n1, n2) * (p3[:, 3] + rho)[:, None]
+        ) / np.where(ok, det, 1.0)[:, None]
+    return z, ok
 
 
 def _circle_points(x, ci, bi, cj, bj):
@@ -312,10 +502,11 @@ def _vertex_points(ci, bi, cj, bj, ck, bk):
 class _Exact:
     """The exact fluid test at any point, over every valid active sphere (frame coordinates)."""
 
-    def __init__(self, local, r, rho, n, h, reachable, exposed):
+    def __init__(self, local, r, rho, n, h, reachable, exposed, planes):
         from scipy.spatial import cKDTree
 
         self.c, self.r, self.rho, self.n, self.h = local, r, rho, n, h
+        self.planes = planes
         self.big = r + rho
         self.reachable = reachable
         self.exposed = exposed
@@ -351,6 +542,8 @@ class _Exact:
             inside = np.all((idx >= 0) & (idx < self.n))
             if inside and not self.reachable[tuple(idx)]:
                 continue
+            if not inside and not _outside_ok(self.planes, idx, self.h, self.rho):
+                continue
             y = (idx + 0.5) * self.h
             if any(_dot(y - z, z - self.c[s]) < 0.0 for s in own if s >= 0):
                 continue
@@ -364,13 +557,18 @@ class _Exact:
         return False
 
     def _any_valid(self, zs, own, near):
-        """Whether one of the candidates ``zs`` (M, 3), on the inflated spheres ``own`` (M, 3; -1: none), is allowed
-        (outside every other inflated ball) and reachable."""
+        """Whether one of the candidates ``zs`` (M, 3), on the inflated spheres or walls ``own`` (M, 3; -1: none,
+        ``-2 - w``: wall w), is allowed (outside every other inflated ball, ``g >= rho`` for every other wall) and
+        reachable. A wall never blocks the segment to a reached corner: g is affine, and both ends keep rho."""
         if not len(zs):
             return False
         mine = self._own(near, own)
         v = zs[:, None, :] - self.c[near][None, :, :]
         blocked = (_dot(v, v) < (self.big[near] * self.big[near])[None, :]) & ~mine
+        if len(self.planes):
+            w = np.arange(len(self.planes))
+            own_wall = (own[:, :, None] == (-2 - w)[None, None, :]).any(axis=1)
+            blocked = np.concatenate([blocked, (_plane(self.planes, zs) < self.rho) & ~own_wall], axis=1)
         return any(self._reachable(zs[m], own[m], near[~mine[m]]) for m in np.flatnonzero(~blocked.any(axis=1)))
 
     def fluid(self, x, lattice):
@@ -383,6 +581,8 @@ class _Exact:
         d2 = _dot(v, v)
         if not lattice:
             if np.any(d2 < self.r[near] * self.r[near]):
+                return False
+            if len(self.planes) and np.any(_plane(self.planes, x) < 0.0):
                 return False
             if self._any_valid(x[None, :], np.full((1, 3), -1), near):
                 return True
@@ -420,7 +620,64 @@ class _Exact:
         own = np.concatenate([own, own])
         w = x - zs
         sel = np.concatenate([okv, okv]) & (_dot(w, w) <= rho2)
-        return self._any_valid(zs[sel], own[sel], near)
+        if self._any_valid(zs[sel], own[sel], near):
+            return True
+        return self._walls_valid(x, ids, near)
+
+    def _walls_valid(self, x, ids, near):
+        """The candidates with a wall, all of them (no gates but the distance): the walls' faces, the circles of the
+        spheres ``ids`` with them, the lines of two walls, the points of two spheres and a wall, of a sphere and two
+        walls, of three walls."""
+        planes, rho = self.planes, self.rho
+        nw = len(planes)
+        if nw == 0:
+            return False
+        tag = -2 - np.arange(nw)
+        zs, owns = [], []
+
+        def add(z, ok, own):
+            w = x - z
+            sel = ok & (_dot(w, w) <= rho * rho)
+            zs.append(z[sel])
+            owns.append(own[sel])
+
+        none = np.full(nw, -1)
+        add(_wall_faces(x, planes, rho), np.ones(nw, dtype=bool), np.stack([tag, none, none], axis=1))
+        c, big = self.c[ids], self.big[ids]
+        si, wi = (a.ravel() for a in np.meshgrid(np.arange(len(ids)), np.arange(nw), indexing="ij"))
+        z, ok = _wall_circle_points(x, c[si], big[si], planes[wi], rho)
+        add(z, ok, np.stack([ids[si], tag[wi], np.full(len(si), -1)], axis=1))
+        w1, w2 = np.triu_indices(nw, 1)
+        z, ok = _wall_line_points(x, planes[w1], planes[w2], rho)
+        add(z, ok, np.stack([tag[w1], tag[w2], np.full(len(w1), -1)], axis=1))
+        # A sphere and two walls.
+        si, pi = (a.ravel() for a in np.meshgrid(np.arange(len(ids)), np.arange(len(w1)), indexing="ij"))
+        p1, p2 = planes[w1[pi]], planes[w2[pi]]
+        ci = c[si]
+        b1 = rho - (((p1[:, 0] * ci[:, 0] + p1[:, 1] * ci[:, 1]) + p1[:, 2] * ci[:, 2]) - p1[:, 3])
+        b2 = rho - (((p2[:, 0] * ci[:, 0] + p2[:, 1] * ci[:, 1]) + p2[:, 2] * ci[:, 2]) - p2[:, 3])
+        z1, z2, ok = _ball_planes_points(ci, big[si] * big[si], p1[:, :3], b1, p2[:, :3], b2)
+        own = np.stack([ids[si], tag[w1[pi]], tag[w2[pi]]], axis=1)
+        add(np.concatenate([z1, z2]), np.concatenate([ok, ok]), np.concatenate([own, own]))
+        # Two spheres (a < b) and a wall.
+        pa, pb = np.triu_indices(len(ids), 1)
+        qa, wq = (a.ravel() for a in np.meshgrid(np.arange(len(pa)), np.arange(nw), indexing="ij"))
+        ia, ib, pl = pa[qa], pb[qa], planes[wq]
+        ci = c[ia]
+        bi2 = big[ia] * big[ia]
+        e1 = c[ib] - ci
+        b1 = ((bi2 - big[ib] * big[ib]) + _dot(e1, e1)) * 0.5
+        b2 = rho - (((pl[:, 0] * ci[:, 0] + pl[:, 1] * ci[:, 1]) + pl[:, 2] * ci[:, 2]) - pl[:, 3])
+        z1, z2, ok = _ball_planes_points(ci, bi2, e1, b1, pl[:, :3], b2)
+        own = np.stack([ids[ia], ids[ib], tag[wq]], axis=1)
+        add(np.concatenate([z1, z2]), np.concatenate([ok, ok]), np.concatenate([own, own]))
+        # Three walls.
+        t = np.array(
+            [(a, b, k) for a in range(nw) for b in range(a + 1, nw) for k in range(b + 1, nw)], dtype=np.int64
+        ).reshape(-1, 3)
+        z, ok = _walls_corners(planes[t[:, 0]], planes[t[:, 1]], planes[t[:, 2]], rho)
+        add(z, ok, tag[t])
+        return self._any_valid(np.concatenate(zs), np.concatenate(owns), near)
 
 
 def _exposed(local, r, rho, n, h, reachable):
@@ -485,8 +742,9 @@ def _row_point(a, t, iu, iv, h):
     return p
 
 
-def _merge_thin(chords, fluid, n, h, a, exact):
-    """Merged thin dry intervals between two fluid samples: list of (iu, iv, face, entry sphere, exit sphere)."""
+def _merge_thin(chords, fluid, n, h, a, exact, planes):
+    """Merged thin dry intervals between two fluid samples (a virtual sample beyond the box is fluid on the fluid
+    side of every wall): list of (iu, iv, face, entry sphere, exit sphere)."""
     groups = {}
     for s, iu, iv, m0, lo, hi in chords:
         groups.setdefault((iu, iv, m0), []).append((lo, s, hi))
@@ -494,10 +752,12 @@ def _merge_thin(chords, fluid, n, h, a, exact):
     for (iu, iv, m0), items in groups.items():
         ok = True
         for m in (m0, m0 + 1):
+            idx = [0, 0, 0]
+            idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3] = m, iu, iv
             if 0 <= m < n[a]:
-                idx = [0, 0, 0]
-                idx[a], idx[(a + 1) % 3], idx[(a + 2) % 3] = m, iu, iv
                 ok &= bool(fluid[tuple(idx)])
+            else:
+                ok &= bool(_walls_fluid(planes, _centres(np.array(idx), h), exact.rho)[0])
         if not ok:
             continue
         items.sort()
@@ -556,8 +816,27 @@ def _nearest(points, cen, rad, ids, tol, chunk=100_000):
     return owner, best, tie
 
 
+def frame_walls(walls, grid: LampGrid) -> np.ndarray:
+    """Wall planes (W, 4) in world coordinates (n, d: fluid where n . x > d, as ``validate.check_walls`` gives them)
+    in the grid's frame, as the kernels read them for positions already in the frame: ``n_f = R^T n``, ``d_f = d -
+    n . o`` in float64 (o the frame origin in world coordinates), rounded to float32."""
+    planes = np.asarray(walls, dtype=np.float64).reshape(-1, 4)
+    n_f = planes[:, :3] @ grid.rotation
+    d_f = planes[:, 3] - planes[:, :3] @ grid.world_origin
+    return np.concatenate([n_f, d_f[:, None]], axis=1).astype(np.float32).astype(np.float64)
+
+
 def wetted_reference(
-    centers, radii, grid: LampGrid, *, probe_radius: float, lamps="all", active=None, allowed=None, in_frame=False
+    centers,
+    radii,
+    grid: LampGrid,
+    *,
+    probe_radius: float,
+    lamps="all",
+    active=None,
+    allowed=None,
+    in_frame=False,
+    walls=None,
 ) -> WettedReference:
     """The wetted-surface mode in float64, by brute force over spheres and scipy over voxels.
 
@@ -573,6 +852,8 @@ def wetted_reference(
             kernels' later stages on the kernels' own allowed map).
         in_frame: ``centers`` are frame coordinates already (``grid.origin`` is not subtracted): pass the float32
             positions the kernels saw to get their answer bit for bit.
+        walls: Optional wall planes (W, 4) in world coordinates (unit normal n into the fluid, offset d; the fluid
+            where n . x > d), placed in the frame as :func:`frame_walls` does.
     """
     n, h = _voxel_box(grid)
     rho = check_positive("probe_radius", probe_radius, allow_zero=True)
@@ -593,19 +874,20 @@ def wetted_reference(
     big = rv[:, None] + rho
     tight = int(np.any((local - big < -0.5 * h) | (local + big > size + 0.5 * h), axis=1).sum())
 
-    own_allowed, allowed_near, solid = _rasterize(local, rv, rho, n, h)
+    planes = frame_walls(np.zeros((0, 4)) if walls is None else walls, grid)
+    own_allowed, allowed_near, solid = _rasterize(local, rv, rho, n, h, planes)
     if allowed is None:
         allowed = own_allowed
     else:
         allowed = np.asarray(allowed, dtype=bool)
         if allowed.shape != tuple(n):
             raise ValueError(f"allowed: expected shape {tuple(n)}, got {allowed.shape}")
-    reachable = _reachable(allowed)
-    fluid, near_rho, _ = _dilate(reachable, h, rho, dilation_table(h, rho))
+    reachable = _reachable(allowed, planes, h, rho)
+    fluid, near_rho, _ = _dilate(reachable, h, rho, dilation_table(h, rho), planes, rho)
     radius = band_radius(h, rho)
-    band, near_band, _ = _dilate(reachable, h, radius, dilation_table(h, radius))
+    band, near_band, _ = _dilate(reachable, h, radius, dilation_table(h, radius), planes, rho)
 
-    exact = _Exact(local, rv, rho, n, h, reachable, _exposed(local, rv, rho, n, h, reachable))
+    exact = _Exact(local, rv, rho, n, h, reachable, _exposed(local, rv, rho, n, h, reachable), planes)
     todo = np.argwhere(band & ~fluid & ~solid)
     rescued = 0
     for idx in todo:
@@ -614,12 +896,23 @@ def wetted_reference(
             rescued += 1
 
     tol = 4.0 * EPS32 * ((float(np.abs(local).max()) if len(local) else 0.0) + (float(rv.max()) if len(rv) else 0.0))
-    crossings, thin, thin_faces, ray_crossings = {}, {}, {}, {}
+    crossings, thin, thin_faces, ray_crossings, virtual = {}, {}, {}, {}, {}
     counts = np.zeros((count, 3), dtype=np.int64)
     hits = np.zeros(count, dtype=np.int64)
+    wall_counts = np.zeros((len(planes), 3), dtype=np.int64)
+    bound = attribution_bound(h, rho)
+    bound_search = bound + 1e-9 * (bound + float(np.linalg.norm(n * h)))
     for a in range(3):
         u, v = (a + 1) % 3, (a + 2) % 3
         f = np.pad(np.transpose(fluid, (u, v, a)), ((0, 0), (0, 0), (1, 1)), constant_values=True)
+        if len(planes):
+            # The virtual samples just past both ends of every row: the walls' own fluid.
+            for end, m in ((0, -1), (-1, int(n[a]))):
+                idx = np.zeros((int(n[u]), int(n[v]), 3), dtype=np.int64)
+                idx[..., u], idx[..., v] = np.meshgrid(np.arange(n[u]), np.arange(n[v]), indexing="ij")
+                idx[..., a] = m
+                f[..., end] = _walls_fluid(planes, _centres(idx, h).reshape(-1, 3), rho).reshape(idx.shape[:2])
+        virtual[a] = np.stack([f[..., 0], f[..., -1]], axis=-1)
         before, after = f[..., :-1], f[..., 1:]
         iu, iv, face = np.nonzero(before != after)
         enters = ~after[iu, iv, face]
@@ -627,9 +920,31 @@ def wetted_reference(
         pts[:, a] = face * h[a]
         pts[:, u] = (iu + 0.5) * h[u]
         pts[:, v] = (iv + 0.5) * h[v]
-        owner, dist, tie = _nearest(pts, local, rv, ids, tol)
-        crossings[a] = dict(u=iu, v=iv, face=face, enters=enters, owner=owner, distance=dist, near_tie=tie)
-        merged = _merge_thin(_thin_chords(local, rv, n, h, a), fluid, n, h, a, exact)
+        if len(planes):
+            # A sphere wholly inside a wall (g(c) + r < 0) is part of it: never an owner.
+            free = ~np.any(_plane(planes, local) + rv[:, None] < 0.0, axis=1)
+            owner, dist, tie = _nearest(pts, local[free], rv[free], ids[free], tol)
+        else:
+            owner, dist, tie = _nearest(pts, local, rv, ids, tol)
+        wall = np.full(len(face), -1, dtype=np.int64)
+        if len(planes):
+            # No sphere within the attribution bound: none (a crossing there is a wall's).
+            sphere = (owner >= 0) & (dist <= bound_search[a])
+            dry = pts.copy()
+            dry[:, a] = (np.where(enters, face, face - 1) + 0.5) * h[a]
+            g_p = _plane(planes, pts)
+            cuts = planes[:, a] != 0.0
+            inside = (_plane(planes, dry) < 0.0) & cuts
+            rows = np.arange(len(face))
+            best_in = np.argmin(np.where(inside, g_p, np.inf), axis=1)
+            has_in = inside.any(axis=1)
+            takes = has_in & (~sphere | (g_p[rows, best_in] < dist))
+            best_cut = np.argmin(np.where(cuts, g_p, np.inf), axis=1)
+            fallback = ~has_in & ~sphere & cuts.any()
+            wall = np.where(takes, best_in, np.where(fallback, best_cut, -1))
+            owner = np.where((wall < 0) & sphere, owner, -1)
+        crossings[a] = dict(u=iu, v=iv, face=face, enters=enters, owner=owner, wall=wall, distance=dist, near_tie=tie)
+        merged = _merge_thin(_thin_chords(local, rv, n, h, a), fluid, n, h, a, exact, planes)
         tu, tv, tf, te, tx = (np.array([m[k] for m in merged], dtype=np.int64) for k in range(5))
         thin[a] = dict(u=tu, v=tv, face=tf, entry=ids[te] if len(te) else te, exit=ids[tx] if len(tx) else tx)
         tfaces = np.zeros((int(n[u]), int(n[v]), int(n[a]) + 1), dtype=np.int64)
@@ -645,6 +960,7 @@ def wetted_reference(
             got = sel & (owner >= 0)
             np.add.at(counts[:, a], owner[got], sign)
             np.add.at(hits, owner[got], 1)
+            np.add.at(wall_counts[:, a], wall[sel & (wall >= 0)], sign)
             np.add.at(counts[:, a], thin_owner, sign)
             np.add.at(hits, thin_owner, 1)
     return WettedReference(
@@ -661,9 +977,12 @@ def wetted_reference(
         thin=thin,
         thin_faces=thin_faces,
         ray_crossings=ray_crossings,
+        virtual=virtual,
         counts=counts,
         hits=hits,
-        bound=attribution_bound(h, rho),
+        wall_counts=wall_counts,
+        walls=planes,
+        bound=bound,
         uncertain=len(todo),
         rescued=rescued,
         invalid=invalid,
