@@ -30,8 +30,8 @@ through the channels between spheres (limitation 2). This mode loads the boundar
 - **Walls** (issue 19, part 2; planes with the fluid where ``g = n . x - d > 0``): the probe centre keeps
   ``g >= rho`` from every wall, a voxel centre with ``g < 0`` is solid, beyond the box only the points that keep rho
   from every wall are reached and only those within rho of them are fluid (the walls' own fluid: ``g >= 0`` for one
-  wall). The offset planes are more candidates of the exact test. A crossing whose dry voxel lies inside a wall goes
-  to that wall when it is nearer than every sphere (``g(p)`` against ``|p - c| - r``, ties to the sphere); a sphere
+  wall). The offset planes are more candidates of the exact test. A crossing goes to the nearest wall that cuts its axis
+  when that wall is nearer than every sphere (``g(p)`` against ``|p - c| - r``, ties to the sphere); a sphere
   wholly inside a wall is part of it. Per axis, particles and walls together take exactly the rays with one end in
   the fluid and the other in a wall; on an axis no wall cuts, the particles' counts still sum to zero.
 

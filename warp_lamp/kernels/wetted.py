@@ -25,8 +25,8 @@ Pipeline of one update (each step's decisions are exact, so CPU and CUDA agree b
 Walls (``LampWalls``, planes in the frame; none: every result as without them): ``wet_rasterize_walls`` adds them to
 the blocked (``g < rho``) and solid (``g < 0``) maps, the outside is reached only where it keeps rho from every wall
 (runs along x, ``wall_row_run``), the virtual samples past the box are the walls' own fluid (``walls_fluid``), the
-exact test has the offset planes among its candidates (``wall_search``), and a crossing whose dry voxel lies in a
-wall may go to it (``load_crossing``, ``wall_counts``).
+exact test has the offset planes among its candidates (``wall_search``), and a crossing nearer a wall that cuts its
+axis than to any sphere goes to the wall (``load_crossing``, ``wall_counts``).
 """
 
 import warp as wp
@@ -943,13 +943,12 @@ def load_crossing(
     wall_counts: wp.array[wp.int64],
 ):
     """A crossing at p on a row along axis a: fluid to dry going +a (enters = 1, the low lamp's +1) or dry to
-    fluid (the high lamp's -1), to the nearest sphere, ``|p - c| - r`` (ties to the lowest index). With walls:
-    when the dry voxel lies inside walls (``g < 0`` at its centre; such walls cut axis a), the one of them with the
-    smallest signed distance ``g(p)`` (ties to the lower wall) takes the crossing if that is smaller than the
-    sphere's distance (ties to the sphere) or no sphere lies within the attribution bound; a crossing with no sphere
-    within the bound and its dry voxel in no wall (a dry corner between walls) goes to the wall that cuts axis a
-    with the smallest g(p). A wall whose normal has no a-component never takes an axis-a crossing, so on an axis
-    no wall cuts the particles' counts still sum to zero. Integer counts, so the order of the atomics cannot change
+    fluid (the high lamp's -1), to the nearest sphere, ``|p - c| - r`` (ties to the lowest index). With walls: the
+    wall cutting axis a with the smallest signed distance ``g(p)`` (ties to the lower wall) takes the crossing if
+    that is smaller than the sphere's distance (ties to the sphere) or no sphere lies within the attribution bound:
+    the dry fillet between a body and its platen loads the platen where the platen is nearer. A wall whose normal
+    has no a-component never takes an axis-a crossing, so on an axis no wall cuts the particles' counts still sum
+    to zero. Integer counts, so the order of the atomics cannot change
     the result."""
     lamp = 2 * a
     sign = int(1)
@@ -967,29 +966,15 @@ def load_crossing(
             ds = sphere_distance(p, pid, positions, radii)
             if not (ds <= box.bound[a]):
                 pid = -1
-        xd = p
-        if enters != 0:
-            xd[a] = voxel_centre(face, box.h[a])
-        else:
-            xd[a] = voxel_centre(face - 1, box.h[a])
         wall = int(-1)
         best = wp.float64(0.0)
         for w in range(walls.n):
             pl = walls.frame[w]
             if pl[a] != wp.float32(0.0):
-                if plane_value(pl, xd) < wp.float64(0.0):
-                    g = plane_value(pl, p)
-                    if wall < 0 or g < best:
-                        best = g
-                        wall = w
-        if wall < 0 and pid < 0:
-            for w in range(walls.n):
-                pl = walls.frame[w]
-                if pl[a] != wp.float32(0.0):
-                    g = plane_value(pl, p)
-                    if wall < 0 or g < best:
-                        best = g
-                        wall = w
+                g = plane_value(pl, p)
+                if wall < 0 or g < best:
+                    best = g
+                    wall = w
         if pid >= 0:
             if not (best < ds):
                 wall = -1

@@ -24,11 +24,10 @@ point. It restates the mode's definition and imports nothing from the modules it
   those points (spheres aside: the walls' own fluid; ``g >= 0`` for one wall) are fluid. The offset plane g = rho
   is one more surface of the union whose critical points are the candidates: its faces, its circles with inflated
   spheres, the lines of two walls, and the points of a wall with two spheres, of two walls with a sphere, of three
-  walls. A sphere wholly inside a wall (``g(c) + r < 0``) is part of the wall: never an owner. A crossing whose dry
-  voxel lies inside walls (``g < 0``) goes to the one of them with the smallest ``g(p)`` when that is below the
-  nearest sphere's ``|p - c| - r`` or no sphere lies within the attribution bound; one with no sphere within the
-  bound goes to the nearest wall (smallest g(p)); only walls whose normal has a component along the row's axis
-  take crossings.
+  walls. A sphere wholly inside a wall (``g(c) + r < 0``) is part of the wall: never an owner. A crossing goes to the
+  wall with the smallest ``g(p)`` among those cutting its axis when that is below the nearest sphere's
+  ``|p - c| - r`` or no sphere lies within the attribution bound; only walls whose normal has a component along the
+  row's axis take crossings.
 
 Each decision is the same float64 expression the kernels evaluate, so on inputs that float32 holds exactly (frame
 coordinates and radii) the two agree bitwise. Where the kernels' float32 inputs could tip a decision (a voxel
@@ -930,18 +929,12 @@ def wetted_reference(
         if len(planes):
             # No sphere within the attribution bound: none (a crossing there is a wall's).
             sphere = (owner >= 0) & (dist <= bound_search[a])
-            dry = pts.copy()
-            dry[:, a] = (np.where(enters, face, face - 1) + 0.5) * h[a]
             g_p = _plane(planes, pts)
             cuts = planes[:, a] != 0.0
-            inside = (_plane(planes, dry) < 0.0) & cuts
             rows = np.arange(len(face))
-            best_in = np.argmin(np.where(inside, g_p, np.inf), axis=1)
-            has_in = inside.any(axis=1)
-            takes = has_in & (~sphere | (g_p[rows, best_in] < dist))
             best_cut = np.argmin(np.where(cuts, g_p, np.inf), axis=1)
-            fallback = ~has_in & ~sphere & cuts.any()
-            wall = np.where(takes, best_in, np.where(fallback, best_cut, -1))
+            takes = cuts.any() & (~sphere | (g_p[rows, best_cut] < dist))
+            wall = np.where(takes, best_cut, -1)
             owner = np.where((wall < 0) & sphere, owner, -1)
         crossings[a] = dict(u=iu, v=iv, face=face, enters=enters, owner=owner, wall=wall, distance=dist, near_tie=tie)
         merged = _merge_thin(_thin_chords(local, rv, n, h, a), fluid, n, h, a, exact, planes)
