@@ -20,7 +20,8 @@ for part in "$@"; do
   [ -f "$file" ] || { echo "lease: no part '$part' (bench/gpu/lease.sh --list)"; exit 2; }
   echo "== $part =="
   t0=$(date +%s)
-  ( source "$file" ) 2>&1 | tee "$OUT/$part.log"
+  # Each part under a time limit, so that one that hangs cannot cost the others their results.
+  ( timeout "${PART_TIMEOUT:-580}" bash -c "source '$here/preamble.sh' >/dev/null; source '$file'" ) 2>&1 | tee "$OUT/$part.log"
   rc=${PIPESTATUS[0]}
   summary+=("$(printf '| %-18s | %4s | %5s s |' "$part" "$rc" "$(( $(date +%s) - t0 ))")")
 done

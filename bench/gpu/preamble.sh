@@ -10,3 +10,5 @@ if compgen -G ".whl/*.whl" >/dev/null; then
   python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --target /root/site .whl/*.whl
 fi
 nvidia-smi --query-gpu=name,driver_version,clocks.max.sm --format=csv | tee "$OUT/gpu.txt"
+# The dev machine's specimen packings, carried in .scenes/ (the same particles everywhere; no packing time here).
+[ -d .scenes ] && export WARP_LAMP_CACHE="$PWD/.scenes"
