@@ -19,10 +19,10 @@ PART=bench/gpu/parts/distributed_run.py
   python3 -c "import torch, cupy; from cupy.cuda import nccl; print('torch', torch.__version__, 'cupy', cupy.__version__, 'nccl', nccl.get_version() if nccl.available else 'missing')"
 } 2>&1 | tee "$OUT/run.log"
 python3 -m pytest -q -p no:cacheprovider tests/test_distributed.py 2>&1 | tee "$OUT/pytest.log" | tail -4
-timeout 300 $RUN --nproc_per_node=1 $PART run --out "$OUT/ranks1.json" 2>&1 | tee -a "$OUT/run.log"
+timeout "${DIST_TIMEOUT:-300}" $RUN --nproc_per_node=1 $PART run --out "$OUT/ranks1.json" 2>&1 | tee -a "$OUT/run.log"
 # Timings and the checks in separate runs: a rank that failed inside a collective would leave the other waiting.
-timeout 300 $RUN --nproc_per_node=2 $PART run --part scale --out "$OUT/ranks2.json" 2>&1 | tee -a "$OUT/run.log"
-timeout 300 $RUN --nproc_per_node=2 $PART run --part checks --out "$OUT/checks2.json" 2>&1 | tee -a "$OUT/run.log"
+timeout "${DIST_TIMEOUT:-300}" $RUN --nproc_per_node=2 $PART run --part scale --out "$OUT/ranks2.json" 2>&1 | tee -a "$OUT/run.log"
+timeout "${DIST_TIMEOUT:-300}" $RUN --nproc_per_node=2 $PART run --part checks --out "$OUT/checks2.json" 2>&1 | tee -a "$OUT/run.log"
 timeout 120 $RUN --nproc_per_node=2 $PART capture --out "$OUT/capture.json" 2>&1 | tee -a "$OUT/run.log"
 echo "== summary =="
 tail -1 "$OUT/pytest.log"
