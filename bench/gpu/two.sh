@@ -12,7 +12,7 @@ mkdir -p "$OUT" "$WORK/g0" "$WORK/g1"
 here="$(dirname "${BASH_SOURCE[0]}")"
 export LEASE_END=$(( $(date +%s) + ${LEASE_SECONDS:-540} ))
 snap() { tar czf "$OUT/.lease.tgz" -C "$WORK" . 2>/dev/null && mv "$OUT/.lease.tgz" "$OUT/lease-$tag.tgz"; }
-( while sleep 20; do snap; done ) & ticker=$!
+( while sleep 20; do snap; done ) >/dev/null 2>&1 & ticker=$!
 pids=()
 if [ "$1" != "-" ]; then (CUDA_VISIBLE_DEVICES=0 OUT="$WORK/g0" bash "$here/lease.sh" $1 > "$WORK/g0.log" 2>&1) & pids+=($!); fi
 if [ "$2" != "-" ]; then (CUDA_VISIBLE_DEVICES=1 OUT="$WORK/g1" bash "$here/lease.sh" $2 > "$WORK/g1.log" 2>&1) & pids+=($!); fi
