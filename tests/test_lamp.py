@@ -27,7 +27,9 @@ def assert_matches_reference(lamp, centers, radii, *, criterion, lamps="all", ac
         assert not wrong.any(), f"{name}: {wrong.sum()} cells differ from the reference, first {np.argwhere(wrong)[0]}"
         total += amb.size
         ambiguous += int(amb.sum())
-    assert ambiguous <= max_ambiguous * total
+    # The comparison must not be vacuous; but a grid whose rows pass through a disk's extreme points (a sphere centred
+    # on a cell corner at one cell per diameter, say) has up to four tangent rays per sphere and lamp, however small.
+    assert ambiguous <= max(max_ambiguous * total, 4 * len(radii) * len(wl.LAMPS))
     if ambiguous == 0:
         np.testing.assert_array_equal(diag.counts, ref.counts)
     return ref
