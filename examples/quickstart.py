@@ -1,6 +1,6 @@
 """Quick start: lamp forces and porosity on a ball of spheres, then a ShiningLamp in a simulator's step loop.
 
-The same code as the README's "Quick start" (tests/test_quickstart.py runs it and checks that the two agree).
+The same code as the README's "Quick start" (tests/test_examples.py runs it and checks that the two agree).
 device="cpu" works on every machine; "cuda:0" runs it on a GPU. The first run compiles the kernels (about 10 s,
 cached in ~/.cache/warp); later runs start in about a second.
 """

@@ -86,7 +86,7 @@ def test_stress_tensor_equals_principal_pressures_in_its_frame(device, rng):
 def test_bad_rotations_and_tensors_are_refused_by_name():
     """Not orthonormal, a reflection, NaN, wrong shapes; non-symmetric or NaN tensors, and a tensor with shear in
     the grid's frame: each refused with the argument's name (a pure shear is applied in its principal frame, with
-    the mixed-signs warning: tests/test_first_hour_api.py)."""
+    the mixed-signs warning: tests/test_errors.py)."""
     c, r = np.zeros((1, 3)), [0.5]
     for rot, match in (
         (np.diag([1.0, 1.0, 1.1]), r"rotation: not orthonormal"),

@@ -1,10 +1,22 @@
-"""Porosity kernels against the `overlap` oracle, the float64 references, and the paper."""
+"""Porosity kernels against the `overlap` oracle, the float64 references, and the paper.
 
+The midpoint method's inputs: which sub-cell a centre goes to, and how a radius rounds to whole sub-cells.
+
+The paper's algorithms take integer centres and radii. ``warp_lamp.porosity`` rounds them (centre: the sub-cell
+that holds it, floor; radius: nearest whole number of sub-cell edges, ties to even, at least 1). Here the rounding
+is done by hand on dyadic sub-cells (so that the ties are exact), and the reference is checked not to borrow the
+library's rounding."""
+
+import ast
+import importlib
+import inspect
 import itertools
+import time
 
 import numpy as np
 import pytest
 
+import warp_lamp as wl
 from warp_lamp.peers import overlap_hexahedron
 from warp_lamp.porosity import kozeny_carman, midpoint_choice, porosity
 from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets, porosity_reference
@@ -207,3 +219,191 @@ def test_bad_input(kwargs, match):
         porosity(
             args.pop("centers"), args.pop("radii"), args.pop("lower"), args.pop("upper"), args.pop("shape"), **args
         )
+
+
+porosity_module = importlib.import_module("warp_lamp.porosity")
+
+reference_module = importlib.import_module("warp_lamp.reference.porosity")
+
+HS = np.array([0.25, 0.25, 0.25])
+
+SHAPE = (24, 16, 20)
+
+CASES = [
+    ((3.0, 2.0, 2.5), 0.625, (12, 8, 10), 2),  # r/h = 2.5: ties to even, 2
+    ((3.0, 2.0, 2.5), 0.875, (12, 8, 10), 4),  # 3.5: to even, 4
+    ((3.0, 2.0, 2.5), 0.7, (12, 8, 10), 3),  # 2.8
+    ((2.99, 1.99, 2.49), 0.6, (11, 7, 9), 2),  # just below a sub-cell corner: floor, not nearest
+    ((0.249, 0.249, 0.249), 0.25, (0, 0, 0), 1),
+    ((3.2, 2.3, 2.6), 0.05, (12, 9, 10), 1),  # r/h = 0.2 rounds to 0: at least 1
+    ((-0.1, 2.0, 2.5), 1.0, (-1, 8, 10), 4),  # centre outside the box: floor, -1, not 0
+]
+
+
+def marked(centre, radius, algorithm, device):
+    """Solid sub-cells of one sphere on the grid (one sub-cell per cell), by the library."""
+    upper = HS * SHAPE
+    eps = porosity(
+        [centre],
+        [radius],
+        [0, 0, 0],
+        upper,
+        SHAPE,
+        method="midpoint",
+        subdivisions=1,
+        midpoint_algorithm=algorithm,
+        device=device,
+    )
+    return {tuple(int(x) for x in p) for p in np.argwhere(eps == 0.0)}
+
+
+def expected(cell, rad, algorithm):
+    """Algorithm 1: the paper's traversal pattern of radius rad around cell; Algorithm 2: the sub-cells with
+    |p - c|^2 - r^2 < 0. Clipped to the grid."""
+    if algorithm == 1:
+        pts = midpoint_sphere_offsets(rad) + np.asarray(cell)
+    else:
+        r = range(-rad, rad + 1)
+        pts = np.array([(i, j, k) for i in r for j in r for k in r if i * i + j * j + k * k < rad * rad]) + cell
+    inside = np.all((pts >= 0) & (pts < np.asarray(SHAPE)), axis=1)
+    return {tuple(int(x) for x in p) for p in pts[inside]}
+
+
+@pytest.mark.filterwarnings("ignore:subdivisions. with")  # radii of 1 sub-cell on purpose: the rounding warns
+@pytest.mark.parametrize("algorithm", [1, 2])
+@pytest.mark.parametrize(("centre", "radius", "cell", "rad"), CASES)
+def test_midpoint_rounds_centres_down_and_radii_to_nearest_even(device, centre, radius, cell, rad, algorithm):
+    """The sub-cells the midpoint method marks for one sphere are the pattern of the hand-rounded centre and
+    radius, for both of the paper's algorithms; the float64 reference marks the same."""
+    got = marked(centre, radius, algorithm, device)
+    want = expected(cell, rad, algorithm)
+    assert got == want
+    ref = porosity_reference(
+        [centre],
+        [radius],
+        [0, 0, 0],
+        HS * SHAPE,
+        SHAPE,
+        method="midpoint",
+        subdivisions=1,
+        midpoint_algorithm=algorithm,
+    )
+    assert {tuple(int(x) for x in p) for p in np.argwhere(ref == 0.0)} == want
+
+
+def test_reference_does_not_borrow_the_library_rounding(monkeypatch):
+    """The reference's midpoint inputs are its own: it imports nothing from ``warp_lamp.porosity``, and breaking
+    the library's rounding does not change the reference's answer."""
+    tree = ast.parse(inspect.getsource(reference_module))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            assert node.module != "warp_lamp.porosity", ast.dump(node)
+        if isinstance(node, ast.Import):
+            assert all(a.name != "warp_lamp.porosity" for a in node.names)
+    args = ([[3.0, 2.0, 2.5], [1.3, 2.2, 4.4]], [0.875, 0.6], [0, 0, 0], HS * SHAPE, SHAPE)
+    before = porosity_reference(*args, method="midpoint", subdivisions=1)
+    monkeypatch.setattr(porosity_module, "_midpoint_spheres", lambda local, radii, hs: (None, None))
+    np.testing.assert_array_equal(porosity_reference(*args, method="midpoint", subdivisions=1), before)
+
+
+C3 = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+R3 = np.array([0.5, 0.5, 0.5])
+
+
+def test_midpoint_on_tall_cells_measures_a_sphere_not_an_ellipsoid(device):
+    """A sphere in a cell twice as tall as wide: midpoint (cubic sub-cells) agrees with the exact volume to its
+    resolution, as voxel does; stretched sub-cells used to count the sphere as an ellipsoid (0.800 vs 0.866)."""
+    args = ([[0.5, 0.5, 1.0]], [0.4], [0, 0, 0], [1, 1, 2], (1, 1, 1))
+    exact = wl.porosity(*args, method="exact", device=device)[0, 0, 0]
+    mid = wl.porosity(*args, method="midpoint", subdivisions=32, device=device)[0, 0, 0]
+    vox = wl.porosity(*args, method="voxel", subdivisions=32, device=device)[0, 0, 0]
+    assert abs(vox - exact) < 2e-3
+    assert abs(mid - exact) < 5e-3, (mid, exact)
+    # The same call with the cubic sub-cells spelled out, and the reference, agree bitwise.
+    per_axis = wl.porosity(*args, method="midpoint", subdivisions=(32, 32, 64), device=device)[0, 0, 0]
+    assert per_axis == mid == porosity_reference(*args, method="midpoint", subdivisions=32)[0, 0, 0]
+
+
+def test_midpoint_refuses_cells_that_cannot_be_cut_into_cubes():
+    """Cells whose edges are not whole multiples of one sub-cell, and non-cubic per-axis counts, are refused."""
+    with pytest.raises(ValueError, match=r"subdivisions: midpoint needs cubic sub-cells.*method='voxel'"):
+        wl.porosity([[0.5, 0.5, 0.5]], [0.3], [0, 0, 0], [1.0, 1.0, 1.37], (1, 1, 1), method="midpoint")
+    with pytest.raises(ValueError, match=r"subdivisions: midpoint needs cubic sub-cells, but \(8, 8, 8\)"):
+        wl.porosity([[0.5, 0.5, 0.5]], [0.3], [0, 0, 0], [1, 1, 2], (1, 1, 1), method="midpoint", subdivisions=(8,) * 3)
+    from warp_lamp.porosity import midpoint_subdivisions
+
+    assert midpoint_subdivisions([1.0, 1.0, 2.0], 8, per_axis=False) == (8, 8, 16)
+    assert midpoint_subdivisions([0.3, 0.1, 0.2], 5, per_axis=False) == (15, 5, 10)
+
+
+@pytest.mark.filterwarnings("ignore:porosity. all 1 spheres")  # r <= 2: the clipped sphere misses the box
+@pytest.mark.filterwarnings("ignore:subdivisions. with")  # r = 1 sub-cell: rounding warns, Table 1 is still exact
+@pytest.mark.parametrize("r", [1, 2, 3, 9, 10, 17, 24])
+def test_midpoint_kernel_marks_exactly_the_paper_recurrence(r):
+    """The kernel's closed-form rows equal the literal midpoint recurrence, sub-cell by sub-cell, for a whole
+    sphere and for one clipped by the box (centre outside it)."""
+    n = 2 * r + 3
+    for centre, box in (((r + 1.5,) * 3, (n, n, n)), ((-2.5, r / 2 + 0.5, r + 1.5), (r + 2, r + 1, n))):
+        p = wl.porosity([centre], [float(r)], [0, 0, 0], box, box, method="midpoint", subdivisions=1, device="cpu")
+        got = {tuple(int(x) for x in ijk) for ijk in np.argwhere(p == 0.0)}
+        c = np.floor(centre).astype(int)
+        want = {
+            tuple(int(x) for x in o + c)
+            for o in midpoint_sphere_offsets(r)
+            if np.all(o + c >= 0) and np.all(o + c < np.asarray(box))
+        }
+        assert got == want
+
+
+def test_midpoint_work_is_clipped_to_the_box():
+    """A sphere of radius 10 km around a 1 m box takes the box's rows, not r^2 of them; radius 1e9 m is refused
+    by name, not passed to an overflowing hash grid."""
+    t0 = time.perf_counter()
+    p = wl.porosity([[0.5, 0.5, 0.5]], [1e4], [0, 0, 0], [1, 1, 1], (1, 1, 1), method="midpoint", device="cpu")
+    assert p[0, 0, 0] == 0.0
+    assert time.perf_counter() - t0 < 2.0
+    with pytest.raises(ValueError, match=r"radii: sphere 0 is 8e\+09 sub-cells in radius"):
+        wl.porosity([[0.5, 0.5, 0.5]], [1e9], [0, 0, 0], [1, 1, 1], (1, 1, 1), method="midpoint", device="cpu")
+    # A huge sphere that does not reach the box is dropped, whatever its size.
+    with pytest.warns(RuntimeWarning, match="wholly outside"):
+        far = wl.porosity([[0.5, 0.5, -3e9]], [1e9], [0, 0, 0], [1, 1, 1], (1, 1, 1), method="midpoint", device="cpu")
+    assert far[0, 0, 0] == 1.0
+
+
+def test_voxel_counts_do_not_overflow_in_a_cell_of_more_than_2_31_sub_cells():
+    """One full cell of 1291^3 > 2^31 sub-cells has porosity 0, not 1.955 from a wrapped int32 count."""
+    p = wl.porosity([[0.5, 0.5, 0.5]], [1.0], [0, 0, 0], [1, 1, 1], (1, 1, 1), subdivisions=1291, device="cpu")
+    assert p[0, 0, 0] == 0.0
+
+
+def test_porosity_sum_methods_check_their_memory_first():
+    """A 10^15-cell exact or centroid request names the shape, the bytes and max_bytes, before any allocation."""
+    for method in ("exact", "centroid", "polyhedron"):
+        with pytest.raises(
+            ValueError,
+            match=r"shape: \(100000, 100000, 100000\) cells and 3 spheres need 8,000,000,000,000,096 bytes .*"
+            r"over the budget of max_bytes = 2,147,483,648 bytes",
+        ):
+            wl.porosity(C3, R3, [-1] * 3, [2] * 3, (100000,) * 3, method=method)
+
+
+def test_union_budget_covers_the_per_cell_counts():
+    """The union methods' budget counts the int64 per-cell counts as well as the bitmap."""
+    from warp_lamp.porosity import porosity_nbytes
+
+    shape = (100, 100, 100)
+    bitmap = 4 * 4 * 100 * 100
+    assert porosity_nbytes(shape, method="voxel", subdivisions=1, n_spheres=3) == bitmap + 8 * 10**6 + 96
+    with pytest.raises(ValueError, match=r"subdivisions: \(1, 1, 1\) on shape \(100, 100, 100\) .* max_bytes = "):
+        wl.porosity(C3, R3, [-1] * 3, [2] * 3, shape, subdivisions=1, max_bytes=10**6)
+    assert wl.porosity(C3, R3, [-1] * 3, [2] * 3, shape, subdivisions=1, max_bytes=9 * 10**6).shape == shape
+
+
+def test_porosity_warns_when_the_box_and_the_spheres_cannot_match():
+    """Spheres in metres against a box in millimetres (none reaches the box, or they fill under 1e-9 of it) warn."""
+    centers = np.random.default_rng(1).uniform(0, 0.1, (50, 3))
+    with pytest.warns(RuntimeWarning, match=r"all 50 spheres lie wholly outside the box"):
+        wl.porosity(centers, 0.0025, [100] * 3, [200] * 3, (2, 2, 2), method="exact")
+    with pytest.warns(RuntimeWarning, match=r"share one unit"):
+        wl.porosity(centers, 0.0025, [0] * 3, [100] * 3, (2, 2, 2), method="exact")

@@ -1,14 +1,24 @@
 """Every Python block of README.md runs as written, each on its own (a reader copies one block, not the page), in
 a fresh namespace; a block that cannot run alone says so with ``<!-- fragment: why -->`` on the line before it,
-and still compiles."""
+and still compiles.
+
+The README's measured figures that any machine can recompute (the CPU ones; GPU timings live in result files):
+each is asserted to its printed precision, so that a change that moves one fails here instead of silently making
+the README wrong. bench/mutation/README_CLAIMS.md lists every figure and where its evidence is."""
 
 import re
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from warp_lamp.bench_porosity import table_1
+from warp_lamp.measures import lone_sphere_error
+from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets
+
 ROOT = Path(__file__).resolve().parents[1]
+
 FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
@@ -46,3 +56,48 @@ def test_readme_block_runs_on_its_own(line, code, why, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         exec(compile(code, f"README.md:{line}", "exec"), namespace)
+
+
+ACCURACY = {1: ["21.9", "7.9", "2.5", "0.95"], 0: ["161", "72", "34", "16"]}
+
+
+def agrees(value: float, printed: str) -> bool:
+    """value rounds to the printed figure (half a unit of its last digit)."""
+    decimals = len(printed.split(".")[1]) if "." in printed else 0
+    return abs(value - float(printed)) <= 0.5 * 10.0**-decimals + 1e-12
+
+
+def test_agrees_reads_the_printed_precision():
+    """The helper itself: 21.94 is 21.9 and 21.96 is not; 161.4 is 161 and 161.6 is not."""
+    assert agrees(21.94, "21.9") and not agrees(21.96, "21.9")
+    assert agrees(161.4, "161") and not agrees(161.6, "161")
+
+
+@pytest.mark.parametrize("criterion", [1, 0])
+def test_lone_sphere_accuracy_table(device, criterion):
+    """README "Accuracy": E_area over 256 offsets is 21.9 / 7.9 / 2.5 / 0.95 % (criterion 1) and 161 / 72 / 34 /
+    16 % (criterion 0) at 2, 4, 8 and 16 cells per diameter."""
+    for k, printed in zip((2, 4, 8, 16), ACCURACY[criterion], strict=True):
+        e = 100 * lone_sphere_error(criterion, k, device, samples=256)
+        assert agrees(e, printed), (criterion, k, e, printed)
+
+
+def test_paper_table_1_figures():
+    """README "Paper's Table 1": with the line ends included the counts would be 4,873 (r = 10) and 68,075
+    (r = 25); the paper's counts are 0.3% under the ball's volume at r = 10, 2.2% under at 25 and 17% under at 4,
+    but 4.4% over at r = 2 and 1.0% over at r = 5."""
+    assert len(midpoint_sphere_offsets(10, line_ends=True)) == 4873
+    assert len(midpoint_sphere_offsets(25, line_ends=True)) == 68075
+    fill = {r: 100 * (PAPER_TABLE_1[r - 1] / (4 / 3 * np.pi * r**3) - 1) for r in (2, 4, 5, 10, 25)}
+    for r, printed in ((10, "-0.3"), (25, "-2.2"), (4, "-17"), (2, "4.4"), (5, "1.0")):
+        assert agrees(fill[r], printed), (r, fill[r])
+
+
+def test_voxel_column_of_table_1():
+    """README Table 1's voxel column (the bench's sub-cell-centre count, 64 seeded offsets): RMS 4,190.3 and error
+    0.23% at r = 10, 65,450.8 and 0.04% at r = 25, 30.9% at r = 1; the midpoint column equals the paper's."""
+    rows = {t["r"]: t for t in table_1()}
+    assert [rows[r]["midpoint"] for r in range(1, 26)] == PAPER_TABLE_1
+    for r, rms, err in ((10, "4190.3", "0.23"), (25, "65450.8", "0.04"), (1, "4.4", "30.9"), (5, "523.2", "0.98")):
+        assert agrees(rows[r]["voxel_rms"], rms), (r, rows[r])
+        assert agrees(100 * rows[r]["voxel_rms_error"], err), (r, rows[r])

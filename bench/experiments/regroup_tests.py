@@ -3,11 +3,15 @@
 travel with their module, and a name defined twice with different sources is an error (rename first).
 
     python bench/experiments/regroup_tests.py PLAN.json    # {"target.py": ["source.py", ...]}
+
+A source ``file.py::pattern`` takes only the tests whose names match the glob (several joined by ``|``; ``!pattern``: those that do not), with
+every module-level helper of the file.
 """
 
 from __future__ import annotations
 
 import ast
+import fnmatch
 import json
 import sys
 from pathlib import Path
@@ -41,13 +45,24 @@ def _parts(path: Path):
 
 def regroup(plan: dict) -> None:
     used = set()
+    out = {}
     for target, sources in plan.items():
         docs, imports, body, names = [], [], [], {}
         tpath = TESTS / target
-        if tpath.exists() and target not in sources:
+        if tpath.exists() and not any(x.partition("::")[0] == target for x in sources):
             sources = [target, *sources]
-        for fname in sources:
+        for spec in sources:
+            fname, _, pattern = spec.partition("::")
             doc, imps, items = _parts(TESTS / fname)
+            if pattern:
+                neg = pattern.startswith("!")
+                pats = pattern.lstrip("!").split("|")
+                items = [
+                    (n, src)
+                    for n, src in items
+                    if not (n or "").startswith("test_") or any(fnmatch.fnmatch(n, p) for p in pats) != neg
+                ]
+                doc = None
             if doc:
                 docs.append(doc)
             imports += imps
@@ -60,8 +75,11 @@ def regroup(plan: dict) -> None:
                 body.append(src)
             used.add(fname)
         head = '"""' + "\n\n".join(docs).strip() + '"""\n\n' if docs else ""
-        tpath.write_text(head + "".join(dict.fromkeys(imports)) + "\n\n" + "\n\n".join(b.rstrip() for b in body) + "\n")
+        out[tpath] = (head + "".join(dict.fromkeys(imports)) + "\n\n" + "\n\n".join(b.rstrip() for b in body) + "\n")
         print(f"{target}: {len(body)} items from {len(sources)} sources")
+    # Written only once every target has been built: a conflict leaves the tests as they were.
+    for tpath, text in out.items():
+        tpath.write_text(text)
     for fname in used - set(plan):
         (TESTS / fname).unlink()
         print(f"removed {fname}")

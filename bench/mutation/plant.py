@@ -34,13 +34,13 @@ class Bug:
     tests: tuple[str, ...]
 
 
-NONDYADIC = ("tests/test_catch_nondyadic_cells.py",)
-ANISO = ("tests/test_catch_anisotropic_cells.py",)
-PARTIAL = ("tests/test_catch_partial_cells.py",)
-MIDPOINT = ("tests/test_catch_midpoint_inputs.py",)
-MEASURES = ("tests/test_catch_measures.py",)
-CLI = ("tests/test_catch_cli_report.py",)
-SPHERE = ("tests/test_embedding.py::test_sphere_test_reaches_equilibrium_at_the_applied_pressure",)
+NONDYADIC = ("tests/test_lamp.py",)
+ANISO = ("tests/test_lamp.py",)
+PARTIAL = ("tests/test_lamp.py",)
+MIDPOINT = ("tests/test_porosity.py",)
+MEASURES = ("tests/test_measures.py",)
+CLI = ("tests/test_cli.py",)
+SPHERE = ("tests/test_examples.py::test_sphere_test_reaches_equilibrium_at_the_applied_pressure",)
 TIGHT = ("tests/test_lamp.py::test_lone_sphere_force_converges_to_disk_area",)
 VOXEL_ORDER = ("tests/test_porosity.py::test_voxel_error_falls_with_subdivisions_on_nonoverlapping_packing",)
 

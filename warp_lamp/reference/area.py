@@ -537,7 +537,7 @@ def visible_area_reference(centers, radii, *, lamps="all", active=None) -> np.nd
     radius over 2^:data:`SURFACE_LEVELS` and corrected there on a :data:`SURFACE_RASTER` square raster of surface
     depths; the error, confined to those arcs, is at most 2e-5 of a mean sphere's disk per sphere and lamp on a
     packing overlapping up to 30% with radius ratio 3 (against two more levels), and
-    ``tests/test_reference_area.py`` checks it against brute-force rasters.
+    ``tests/test_area.py`` checks it against brute-force rasters.
 
     Args:
         centers: Particle centres [m], shape (N, 3).

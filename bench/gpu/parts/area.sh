@@ -11,7 +11,7 @@ export PYTHONUNBUFFERED=1
 if command -v nvidia-smi >/dev/null; then
   nvidia-smi --query-gpu=name,driver_version --format=csv | tee "$OUT/area_gpu.txt"
 fi
-python3 -m pytest -q -p no:cacheprovider -rfEs tests/test_area.py tests/test_area_kernel.py 2>&1 \
+python3 -m pytest -q -p no:cacheprovider -rfEs tests/test_area.py tests/test_area.py 2>&1 \
   | tee "$OUT/area_pytest.log" | tail -8
 LARGE=""
 if [[ "$DEVICE" == cuda* ]]; then LARGE="--large"; fi

@@ -5,6 +5,6 @@
 # GPU, frames and porosity on the GPU, resolve_device with an ordinal past the GPUs present, the Newton block of the
 # README recording its CUDA graph. About 25 s on the 2-core CPU without a GPU; well under 5 minutes on an H100.
 python3 -m pytest -q -p no:cacheprovider -rfE \
-  tests/test_cli_first_hour.py tests/test_first_hour_api.py tests/test_readme.py tests/test_particles_io.py \
-  tests/test_plots_examples.py tests/test_specimen_sizes.py tests/test_bench_porosity_progress.py \
+  tests/test_cli.py tests/test_errors.py tests/test_readme.py tests/test_cli.py \
+  tests/test_examples.py tests/test_scenes.py tests/test_bench.py \
   tests/test_cli.py tests/test_frames.py 2>&1 | tee "${OUT:-/tmp/out}/firsthour_pytest.log" | tail -12

@@ -12,7 +12,6 @@ import warp_lamp.kernels
 
 KERNEL_MODULES = sorted(f"warp_lamp.kernels.{m.name}" for m in pkgutil.iter_modules(warp_lamp.kernels.__path__))
 
-
 PACKING_FMA = pytest.mark.xfail(
     strict=True,
     reason="kernels/packing.py sets only enable_backward, so CUDA may contract a*b+c into FMAs. Packings relaxed on "
