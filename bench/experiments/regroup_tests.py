@@ -4,8 +4,8 @@ travel with their module, and a name defined twice with different sources is an 
 
     python bench/experiments/regroup_tests.py PLAN.json    # {"target.py": ["source.py", ...]}
 
-A source ``file.py::pattern`` takes only the tests whose names match the glob (several joined by ``|``; ``!pattern``: those that do not), with
-every module-level helper of the file.
+A source ``file.py::pattern`` takes only the tests whose names match the glob (several joined by ``|``;
+``!pattern``: those that do not), with every module-level helper of the file.
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def regroup(plan: dict) -> None:
                 body.append(src)
             used.add(fname)
         head = '"""' + "\n\n".join(docs).strip() + '"""\n\n' if docs else ""
-        out[tpath] = (head + "".join(dict.fromkeys(imports)) + "\n\n" + "\n\n".join(b.rstrip() for b in body) + "\n")
+        out[tpath] = head + "".join(dict.fromkeys(imports)) + "\n\n" + "\n\n".join(b.rstrip() for b in body) + "\n"
         print(f"{target}: {len(body)} items from {len(sources)} sources")
     # Written only once every target has been built: a conflict leaves the tests as they were.
     for tpath, text in out.items():
