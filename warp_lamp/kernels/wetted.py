@@ -33,7 +33,11 @@ import warp as wp
 
 from warp_lamp.kernels.walls import LampWalls, plane_value
 
-wp.set_module_options({"enable_backward": False, "fuse_fp": False})
+# No unrolling: the exact classification nests small constant loops (corners, pairs, axes) around deep inlined
+# calls, and unrolled they made one kernel so large that compiling the module for sm_90 took 570 s on the H100's
+# host (NVRTC through ``wp.compile_aot_module`` on the 2-core dev machine: 502 s unrolled, 57 s not). Unrolling
+# changes no result (the mode's dumps are bitwise equal); its effect on the GPU's run time is not yet measured.
+wp.set_module_options({"enable_backward": False, "fuse_fp": False, "max_unroll": 1})
 
 ONES = wp.constant(wp.uint32(0xFFFFFFFF))
 #: Larger than any distance the search can meet [m].
