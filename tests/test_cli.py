@@ -783,3 +783,65 @@ def test_bad_arguments(tmp_path):
         read_particles(tmp_path / "p.npy", timestep=3)
     with pytest.raises(ParticleFileError, match=re.escape(f"{tmp_path / 'none.csv'}: cannot read it")):
         read_particles(tmp_path / "none.csv")
+
+
+def _cube_csv(path: Path, radius: float, scale: float = 1.0) -> Path:
+    """An 8 x 8 x 8 simple-cubic block of touching spheres (spacing 2 r), as a CSV with a header."""
+    g = np.stack(np.meshgrid(*[np.arange(8) * 2e-3 * scale] * 3, indexing="ij"), -1).reshape(-1, 3)
+    np.savetxt(path, np.c_[g, np.full(len(g), radius)], delimiter=",", header="x,y,z,radius", comments="")
+    return path
+
+
+def test_a_misspelt_flag_is_named_with_the_nearest_flag(capsys, no_work):
+    """A typo in a flag followed by a value (`--presure 1e6`) is refused by the flag's name, with the nearest one;
+    argparse alone took the value for the command and blamed it (the newcomer trial of issues 19-26)."""
+    assert "unrecognized flag --presure (did you mean --pressure?)" in fail(capsys, ["--presure", "1e6"])
+    line = fail(capsys, ["--cels-per-diameter", "8"])
+    assert "unrecognized flag --cels-per-diameter (did you mean --cells-per-diameter?)" in line
+
+
+def test_negative_numbers_in_exponent_notation_are_values(capsys, tmp_path):
+    """`--wall 0 0 -1e-3 0 0 1` reads six numbers (argparse took -1e-3 for a flag and found five)."""
+    path = _cube_csv(tmp_path / "cube.csv", 1e-3)
+    out = tmp_path / "r.json"
+    argv = ["--particles", str(path), "--wall", "0", "0", "-1e-3", "0", "0", "1", "--json", str(out)]
+    assert cli.main([*argv, "--device", "cpu", "--repeats", "1"]) == 0
+    assert "wall 0" in capsys.readouterr().out
+
+
+def test_frames_with_walls_and_subdivisions_with_a_sum_method_are_refused(capsys, no_work, tmp_path):
+    """--frames with --wall (every turned frame's axes cut the wall: nothing balanced, no wall force reported) and
+    --subdivisions with a method that does not subdivide are refused in one line, naming the flags."""
+    path = _cube_csv(tmp_path / "cube.csv", 1e-3)
+    line = fail(capsys, ["--particles", str(path), "--frames", "4", "--wall", "0", "0", "-0.001", "0", "0", "1"])
+    assert "--frames and --wall" in line
+    line = fail(capsys, ["--particles", str(path), "--grid", "2", "2", "2", "--method", "exact", "--subdivisions", "8"])
+    assert "--subdivisions: --method exact does not use it" in line
+
+
+def test_radii_in_other_units_than_the_centres_are_named(capsys, tmp_path):
+    """Radii in millimetres with centres in metres (every sphere 140 times wider than the cloud of centres) are
+    named on the report's units line; the library warns, naming radii (it used to load 8 particles at 1e7 N)."""
+    path = _cube_csv(tmp_path / "mixed.csv", 1.0)
+    assert cli.main(["--particles", str(path), "--device", "cpu", "--repeats", "1"]) == 0
+    out = capsys.readouterr()
+    assert "units: radii: the mean diameter 2 is 143 times the spread of the centres" in out.out
+    assert "UserWarning" not in out.err
+    c, r, _, _ = read_particles(path)
+    with pytest.warns(UserWarning, match="radii: the mean diameter"):
+        wl.lamp_forces(c, r, 1e6, device="cpu")
+    with pytest.warns(UserWarning, match="radii: the mean diameter"):
+        wl.porosity(c, r, c.min(0) - 1, c.max(0) + 1, (2, 2, 2), method="exact", device="cpu")
+
+
+def test_the_grid_and_the_loads_do_not_depend_on_the_length_unit(tmp_path):
+    """The same block in metres and in millimetres lights the same cells: an extent a hair under a whole number of
+    cells (39.999... in metres, 40 in millimetres) used to leave the extreme spheres on the cell edges (768 against
+    704 cells lit per lamp)."""
+    c_m, r_m, _, _ = read_particles(_cube_csv(tmp_path / "m.csv", 1e-3))
+    lit = []
+    for scale in (1.0, 1e3, 0.1, 7.0):
+        f = wl.lamp_forces(c_m * scale, r_m * scale, 1.0, device="cpu")
+        grid = wl.LampGrid.enclosing(c_m * scale, r_m * scale)
+        lit.append((tuple(grid.box_counts.tolist()), np.round(np.abs(f).sum(axis=0) / grid.box_cell[0] ** 2).tolist()))
+    assert all(x == lit[0] for x in lit), lit

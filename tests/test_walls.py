@@ -277,3 +277,16 @@ def test_walls_with_the_area_criterion_are_refused_with_the_reason():
     wl.ShiningLamp(
         wl.LampGrid([0, 0, 0], [1, 1, 1], 0.25), surfaces="all", probe_radius=0.1, walls=[((0, 0, 0), (0, 0, 1))]
     )
+
+
+def test_walls_with_frame_averaging_are_refused():
+    """Frame averaging turns every lamp axis into one that cuts the wall: nothing would balance and the walls'
+    reactions would need averaging in world coordinates, so `frames > 1` with walls is refused by name (it used to
+    run, with unbalanced sideways forces and no wall force reported)."""
+    c = np.array([[0.0, 0.0, 0.5], [1.0, 0.0, 0.5]])
+    r = np.array([0.5, 0.5])
+    grid = wl.LampGrid.enclosing(c, r)
+    with pytest.raises(ValueError, match="walls: not with frame averaging"):
+        wl.ShiningLamp(grid, frames=4, walls=[((0, 0, 0), (0, 0, 1))], device="cpu")
+    with pytest.raises(ValueError, match="walls: not with frame averaging"):
+        wl.lamp_forces(c, r, 1e6, frames=4, walls=[((0, 0, 0), (0, 0, 1))], device="cpu")

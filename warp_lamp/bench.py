@@ -328,7 +328,16 @@ def format_tables(result: dict) -> str:
         f"Memory: {r0['bytes_per_sphere']} B per sphere (12 position + 4 radius of the caller's, 12 counts "
         f"of the lamp's), {r0['bytes_per_cell']} B per cell; nothing allocated per update."
     )
-    lines += ["", "Error (lone sphere E_area; SphereTest specimen stress from the loads, envelope volume):", ""]
+    offsets = (
+        "64 random offsets with --quick (the full run, and the README, use 256)"
+        if result.get("quick")
+        else ("256 random offsets")
+    )
+    lines += [
+        "",
+        f"Error (lone sphere E_area over {offsets}; SphereTest specimen stress from the loads, envelope volume):",
+        "",
+    ]
     lines += markdown_table(
         ["criterion", "cells/diameter", "E_area RMS", "mean p / P", "deviatoric / P", "moment / (P pi R^3)"],
         [

@@ -384,6 +384,10 @@ def _group_of(dest: str) -> str:
     return "lamp"
 
 
+#: A negative number as a command-line word, exponents included (-1, -.5, -1e-3, -2.5E+6).
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 def _parser() -> tuple[argparse.ArgumentParser, dict]:
     parser = argparse.ArgumentParser(prog="warp-lamp", description=__doc__, formatter_class=_Formatter)
     parser.add_argument("--version", action="version", version=_version())
@@ -400,12 +404,16 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
     _add_run_options(run, "")
     bench = sub.add_parser(
         "bench",
-        help="speed against error, on every device present, with peers",
-        description="Time the lamp (bench lamp) or the porosity methods (bench porosity) against their error. "
+        help="speed against error, on every device present, with peers (bench lamp, porosity, tolerance, engines)",
+        description="Time the lamp (bench lamp) or the porosity methods (bench porosity) against their error; "
+        "check tolerance='s choices (bench tolerance); time other engines' pressure boundaries (bench engines). "
         "bench lamp takes about a minute with --quick on a CPU and about 10 minutes on a GPU; bench porosity "
         "--paper about 4 minutes on 2 CPU cores.",
         formatter_class=_Formatter,
     )
+    for p in (parser, run, bench):
+        # argparse takes "-1e-3" for a flag (its pattern knows -1 and -.5 only); DEM inputs write exponents.
+        p._negative_number_matcher = _NEGATIVE_NUMBER
     bench.add_argument(
         "what",
         nargs="?",
@@ -651,6 +659,12 @@ def _check_run(args) -> None:
         args.sigma = None
     if args.frames > 1 and args.pressures is not None and len(set(args.pressures)) > 1:
         raise CliError("--frames averages an isotropic pressure only: give --pressure")
+    if args.frames > 1 and args.walls:
+        raise CliError("--frames and --wall: walls work with one lamp frame only (a turned frame's axes cut them)")
+    if args.subdivisions is not None and args.method in ("exact", "centroid", "polyhedron"):
+        raise CliError(
+            f"--subdivisions: --method {args.method} does not use it (only voxel and midpoint sub-divide a cell)"
+        )
     args.want_porosity = bool(args.vtk) or any(d in given for d in ("grid", "box", "method", "subdivisions"))
     if args.box is not None:
         lo, hi = np.array(args.box[:3]), np.array(args.box[3:])
@@ -722,32 +736,61 @@ def _library_error(message: str, args) -> str:
     return f"{flag}{shown}: {rest}"
 
 
+def _check_flag_names(argv: list[str], parser, commands: dict) -> None:
+    """Refuse a misspelt flag by its name: argparse would take the value after it (``--presure 1e6``) for the
+    command's name and blame the value."""
+    import difflib
+
+    known = set()
+    for p in (parser, *commands.values()):
+        known.update(o for o in p._option_string_actions if o.startswith("--"))
+    for word in argv:
+        if word == "--":
+            break
+        name = word.split("=", 1)[0]
+        if not name.startswith("--") or name in known or any(k.startswith(name) for k in known):
+            continue
+        close = difflib.get_close_matches(name, sorted(known), n=1)
+        parser.error(f"unrecognized flag {name}" + (f" (did you mean {close[0]}?)" if close else ""))
+
+
 def main(argv=None) -> int:
     """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit status."""
     parser, commands = _parser()
     argv = _join_lamps(list(sys.argv[1:] if argv is None else argv))
+    _check_flag_names(argv, parser, commands)
     args = parser.parse_args(argv)
     # Errors found after parsing are reported with the usage of the command that was given.
     usage = commands.get(args.command, parser)
+    import warnings
+
     import warp as wp
 
     wp.config.log_level = wp.LOG_WARNING
     wp.config.quiet = True
-    try:
-        _merge_run_options(args)
-        wp.init()
-        if args.command == "bench":
-            _check_bench(args)
-            runners = {"porosity": _bench_porosity, "tolerance": _bench_tolerance, "engines": _bench_engines}
-            return runners.get(args.what, _bench)(args)
-        _check_run(args)
-        return _run(args)
-    except CliError as e:
-        usage.error(str(e))
-    except (ValueError, OSError) as e:
-        # Input that passed the parser but not the library (a grid over its memory budget, say): one line too,
-        # naming the flag.
-        usage.error(_library_error(str(e), args))
+    formatwarning = warnings.formatwarning
+    with warnings.catch_warnings():
+        # A warning is one line on the command line, not Python's file:line and source; the report's units line
+        # already says the radii's.
+        warnings.formatwarning = lambda message, category, *_, **__: f"warp-lamp: warning: {message}\n"
+        warnings.filterwarnings("ignore", message="radii: the mean diameter")
+        try:
+            _merge_run_options(args)
+            wp.init()
+            if args.command == "bench":
+                _check_bench(args)
+                runners = {"porosity": _bench_porosity, "tolerance": _bench_tolerance, "engines": _bench_engines}
+                return runners.get(args.what, _bench)(args)
+            _check_run(args)
+            return _run(args)
+        except CliError as e:
+            usage.error(str(e))
+        except (ValueError, OSError) as e:
+            # Input that passed the parser but not the library (a grid over its memory budget, say): one line
+            # too, naming the flag.
+            usage.error(_library_error(str(e), args))
+        finally:
+            warnings.formatwarning = formatwarning
     return 2
 
 
@@ -790,15 +833,17 @@ def _first_run_note(args, device) -> None:
         modules.append("warp_lamp.kernels.wetted")
     if args.want_porosity:
         modules.append("warp_lamp.kernels.porosity")
+    import warp as wp
+
+    from warp_lamp.scenes import _cache_dir
+
     build = []
     if args.info is None and not specimen_cached():
-        build.append("packs the SphereTest specimen (seconds, cached in ~/.cache/warp_lamp)")
-        import warp as wp
-
-        if not _compiled(wp.get_device("cpu"), ["warp_lamp.kernels.packing"]):
-            build.append("compiles its packing kernel")
+        packing = "" if _compiled(wp.get_device("cpu"), ["warp_lamp.kernels.packing"]) else " (with its kernel)"
+        build.append(f"packs the SphereTest specimen{packing}, in seconds, cached in {_cache_dir()}")
     if not _compiled(device, modules):
-        build.append(f"compiles the kernels for {device.alias} (10 to 60 s on a CPU, cached in ~/.cache/warp)")
+        where = "10 to 60 s on a CPU" if device.is_cpu else "up to a minute or two per module on a GPU"
+        build.append(f"compiles the kernels for {device.alias} ({where}, cached in {wp.config.kernel_cache_dir})")
     if build:
         print(
             f"warp-lamp: this first run {' and '.join(build)}; later runs start in a second or two",

@@ -137,8 +137,10 @@ class LampGrid:
         # exactly whenever the body's extent is a whole number of cells: a tie that float32 rounding decides.
         # Shift the body by a golden-ratio fraction of the slack instead: irrational, so no whole-cell extent
         # can bring an extreme onto an edge.
+        # The slack must not round to nothing: an extent a hair under a whole number of cells (39.9999... in metres,
+        # 40 in millimetres) would leave the extremes on the edges, and the grid would depend on the unit.
         with np.errstate(over="ignore", divide="ignore"):
-            n = np.floor((hi - lo) / h) + 1.0
+            n = np.floor((hi - lo) / h + 1e-3) + 1.0
         try:
             check_grid_cells(
                 "cells_per_diameter", [[n[(a + 1) % 3], n[(a + 2) % 3]] for a in range(3)], max_bytes, BYTES_PER_CELL

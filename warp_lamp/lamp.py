@@ -66,6 +66,8 @@ __all__ = [
 
 #: Why frame averaging refuses a per-axis pressure.
 FRAMES_ISOTROPIC = "frame averaging needs an isotropic pressure (the lamp axes turn from frame to frame)"
+#: Why walls and frame averaging do not go together (every turned frame's lamp axes cut a wall).
+FRAMES_WALLS = "not with frame averaging (frames > 1); use one frame with the walls"
 
 
 def _check_criterion(criterion) -> int | str:
@@ -644,6 +646,10 @@ class FrameAveragedLamp:
         if follow:
             raise ValueError("frames: frame averaging with follow=True is not supported; follow one frame")
         checked = LampOptions.checked(**options)
+        if checked.walls is not None and len(checked.walls):
+            # A turned frame's lamp axes all cut the wall, so no axis balances, and the walls' reactions would need
+            # averaging over frames in world coordinates: not built.
+            raise ValueError(f"walls: {FRAMES_WALLS}")
         area = checked.criterion == "area"
         grids = [grid.rotated(r) for r in lamp_frame_rotations(frames)]
         need = sum(g.n_samples if area else g.n_cells for g in grids) * 16 * (checked.depth_slots if area else 1)
@@ -987,6 +993,8 @@ def lamp_forces(
         max_bytes=max_bytes,
         walls=walls,
     )
+    if frames > 1 and options.walls is not None and len(options.walls):
+        raise ValueError(f"walls: {FRAMES_WALLS}")
     cells_per_diameter = check_positive("cells_per_diameter", cells_per_diameter)
     mask = None if active is None else check_mask("active", active, c.shape[0])
     base = np.eye(3) if frame is None else frame

@@ -37,6 +37,8 @@ from xml.parsers import expat
 
 import numpy as np
 
+from warp_lamp.validate import radii_unit_hint
+
 __all__ = ["FORMATS", "ParticleFileError", "ParticlesInfo", "guess_units", "read_particles"]
 
 #: Formats :func:`read_particles` reads, by the name ``fmt`` takes.
@@ -802,7 +804,7 @@ def read_particles(path, *, fmt: str | None = None, timestep: int | None = None,
         radius_mean=float(radii.mean()) if n else 0.0,
         radius_max=float(radii.max()) if n else 0.0,
         scale=file_scale * scale,
-        units=guess_units(radii),
+        units=radii_unit_hint(centers, radii) or guess_units(radii),
         columns=columns,
         timestep=step,
         notes=list(notes) + ([f"lengths multiplied by {scale:g}"] if scale != 1.0 else []),

@@ -40,6 +40,7 @@ __all__ = [
     "lamp_mask",
     "lamp_names",
     "lamp_rotation",
+    "radii_unit_hint",
     "resolve_device",
     "unit_mixup_hint",
     "user_stacklevel",
@@ -279,7 +280,34 @@ def check_particles(centers, radii) -> tuple[np.ndarray, np.ndarray]:
     if r.shape[0] and not (np.isfinite(r) & (r > 0)).all():
         k = _first_bad(~(np.isfinite(r) & (r > 0)))
         raise ValueError(f"radii: must be finite and > 0; index {k} is {format_value(r[k])}")
+    hint = radii_unit_hint(c, r)
+    if hint:
+        import warnings
+
+        warnings.warn(hint, UserWarning, stacklevel=user_stacklevel())
     return c, r
+
+
+def radii_unit_hint(centers: np.ndarray, radii: np.ndarray) -> str:
+    """A sentence for a warning when the particles are ten times wider than the whole cloud of their centres, the
+    sign of radii in other units than the centres (radii in millimetres, centres in metres): every sphere then
+    swallows all the others. '' when they look consistent, or for fewer than 8 particles (a clump may overlap).
+
+    Args:
+        centers: Particle centres, shape (N, 3), float64, finite.
+        radii: Particle radii, shape (N,), float64, > 0.
+    """
+    if len(radii) < 8:
+        return ""
+    d = 2.0 * float(np.mean(radii))
+    spread = float(np.max(np.ptp(centers, axis=0)))
+    if d <= 10.0 * spread:
+        return ""
+    return (
+        f"radii: the mean diameter {d:.4g} is {d / max(spread, 1e-300):,.0f} times the spread of the centres "
+        f"({spread:.4g}), so every sphere covers all the others: are the radii and the centres in one unit (SI: "
+        "metres)? Radii in millimetres with centres in metres look like this"
+    )
 
 
 def check_positions(name: str, positions, n: int) -> np.ndarray:
