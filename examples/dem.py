@@ -923,6 +923,30 @@ class Planes:
         return {"force": r[:, 0] / FORCE_SCALE, "stiffness": r[:, 1] / STIFFNESS_SCALE, "contacts": r[:, 2]}
 
 
+class BlockRunner:
+    """Runs a simulation in whole blocks of ``block`` cycles: eagerly on the CPU, as replays of one captured graph
+    on CUDA (the examples' triaxial test and rock cutting). A subclass sets ``dem``, ``device``, ``block``,
+    ``_graph = None`` and ``_loaded = False``, and defines ``_block()`` (one block, eagerly) and ``capture()`` (one
+    block recorded into a graph)."""
+
+    def advance(self, cycles: int) -> None:
+        """Run whole blocks (replays of the captured block on CUDA) for at least ``cycles`` cycles."""
+        blocks = -(-cycles // self.block)
+        if not self.device.is_cuda:
+            for _ in range(blocks):
+                self._block()
+            return
+        if not self._loaded:
+            self._block()  # load the modules and fill the lamp before recording
+            blocks -= 1
+            self._loaded = True
+        if self._graph is None:
+            self._graph = self.capture()
+        for _ in range(blocks):
+            wp.capture_launch(self._graph)
+        self.dem.cycle += blocks * self.block
+
+
 class Dem:
     """Particles, their float64 state and the pieces of one cycle; the examples put the lamp in between.
 

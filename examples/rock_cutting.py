@@ -153,7 +153,7 @@ def resolve_base(base: str, surfaces: str) -> str:
     return base
 
 
-class RockCutting:
+class RockCutting(dem.BlockRunner):
     """The slab, its clamped base, the cutter, the lamp, one cycle, the procedure and the measurements."""
 
     def __init__(
@@ -304,23 +304,6 @@ class RockCutting:
         return self.dem.capture(
             lambda: self.step(lamp_update=next(ticks) % self.config.update_every == 0, lamp=lamp), self.block
         )
-
-    def advance(self, cycles: int) -> None:
-        """Run whole blocks (replays of the captured block on CUDA) for at least ``cycles`` cycles."""
-        blocks = -(-cycles // self.block)
-        if not self.device.is_cuda:
-            for _ in range(blocks):
-                self._block()
-            return
-        if not self._loaded:
-            self._block()  # load the modules and fill the lamp before recording
-            blocks -= 1
-            self._loaded = True
-        if self._graph is None:
-            self._graph = self.capture()
-        for _ in range(blocks):
-            wp.capture_launch(self._graph)
-        self.dem.cycle += blocks * self.block
 
     def time_cycle(self, repeats: int = 10) -> dict:
         """Seconds per cycle (graph replays on CUDA, wall time on the CPU), with and without the lamp, and the

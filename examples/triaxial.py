@@ -277,7 +277,7 @@ def lateral_envelope(x, r, z_bottom: float, z_top: float, slabs: int, sectors: i
     return {"volume": volume, "radius": radius}
 
 
-class TriaxialTest:
+class TriaxialTest(dem.BlockRunner):
     """The specimen, the DEM with its platens, the lateral lamp, the two phases and the measurements."""
 
     def __init__(
@@ -432,23 +432,6 @@ class TriaxialTest:
         return self.dem.capture(
             lambda: self.step(lamp_update=next(ticks) % self.update_every == 0, lamp=lamp), self.block
         )
-
-    def advance(self, cycles: int) -> None:
-        """Run whole blocks (replays of the captured block on CUDA) for at least ``cycles`` cycles."""
-        blocks = -(-cycles // self.block)
-        if not self.device.is_cuda:
-            for _ in range(blocks):
-                self._block()
-            return
-        if not self._loaded:
-            self._block()  # load the modules and fill the lamp before recording
-            blocks -= 1
-            self._loaded = True
-        if self._graph is None:
-            self._graph = self.capture()
-        for _ in range(blocks):
-            wp.capture_launch(self._graph)
-        self.dem.cycle += blocks * self.block
 
     def time_cycle(self, repeats: int = 20) -> dict:
         """Seconds per cycle from graph replays (CUDA; wall time on the CPU), with and without the lamp, at this

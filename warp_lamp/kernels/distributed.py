@@ -20,7 +20,7 @@ from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
 from warp_lamp.kernels.grid import LampGridParams, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
 from warp_lamp.kernels.lamp import walled_owner
-from warp_lamp.kernels.porosity import PI, sphere_box_volume
+from warp_lamp.kernels.porosity import PI, box_cell_volume
 from warp_lamp.kernels.walls import LampWalls
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
@@ -353,14 +353,6 @@ def porosity_fixed(
         for j in range(ys[0], ys[1] + 1):
             for k in range(zs[0], zs[1] + 1):
                 cell = wp.vec3i(i, j, k)
-                v = zero
-                if method == FIXED_EXACT:
-                    lo = wp.vec3d(wp.float64(i) * h[0], wp.float64(j) * h[1], wp.float64(k) * h[2]) - c
-                    v = sphere_box_volume(lo, lo + h, r)
-                else:
-                    v = wp.float64(1.0)
-                    for d in range(3):
-                        hi = wp.min(c[d] + r, wp.float64(cell[d] + 1) * h[d])
-                        v *= wp.max(hi - wp.max(c[d] - r, wp.float64(cell[d]) * h[d]), zero)
+                v = box_cell_volume(c, r, cell, h, method == FIXED_EXACT)
                 if v > zero:
                     add_units(solid, cell, v, scale, overflow)

@@ -130,6 +130,22 @@ def sphere_box_volume(lo: wp.vec3d, hi: wp.vec3d, r: wp.float64) -> wp.float64:
     return total
 
 
+@wp.func
+def box_cell_volume(c: wp.vec3d, r: wp.float64, cell: wp.vec3i, h: wp.vec3d, exact: wp.bool) -> wp.float64:
+    """The volume a sphere adds to a cell: exact (``sphere_box_volume``), or that of its bounding cube's overlap
+    with the cell (PFC's polyhedron mode as the paper describes it). Shared with the distributed fixed-point sums,
+    so that both compute every sphere-cell term by the same expressions."""
+    if exact:
+        lo = wp.vec3d(wp.float64(cell[0]) * h[0], wp.float64(cell[1]) * h[1], wp.float64(cell[2]) * h[2]) - c
+        return sphere_box_volume(lo, lo + h, r)
+    zero = wp.float64(0.0)
+    v = wp.float64(1.0)
+    for d in range(3):
+        hi = wp.min(c[d] + r, wp.float64(cell[d] + 1) * h[d])
+        v *= wp.max(hi - wp.max(c[d] - r, wp.float64(cell[d]) * h[d]), zero)
+    return v
+
+
 #: Per-cell volume of ``porosity_box``.
 BOX_EXACT = wp.constant(0)
 BOX_CUBE = wp.constant(1)
@@ -158,16 +174,7 @@ def porosity_box(
     for i in range(xs[0], xs[1] + 1):
         for j in range(ys[0], ys[1] + 1):
             for k in range(zs[0], zs[1] + 1):
-                cell = wp.vec3i(i, j, k)
-                v = zero
-                if volume == BOX_EXACT:
-                    lo = wp.vec3d(wp.float64(i) * h[0], wp.float64(j) * h[1], wp.float64(k) * h[2]) - c
-                    v = sphere_box_volume(lo, lo + h, r)
-                else:
-                    v = wp.float64(1.0)
-                    for d in range(3):
-                        hi = wp.min(c[d] + r, wp.float64(cell[d] + 1) * h[d])
-                        v *= wp.max(hi - wp.max(c[d] - r, wp.float64(cell[d]) * h[d]), zero)
+                v = box_cell_volume(c, r, wp.vec3i(i, j, k), h, volume == BOX_EXACT)
                 if v > zero:
                     wp.atomic_add(solid, i, j, k, v)
 

@@ -1387,6 +1387,28 @@ def gate_ok(
 
 
 @wp.func
+def circle_nearest(x: wp.vec3d, m: wp.vec3d, axis: wp.vec3d, axis2: wp.float64, rc2: wp.float64) -> wp.vec4d:
+    """The point nearest to x on the circle of centre m, squared radius rc2 > 0, in the plane normal to ``axis``
+    (``axis2`` its squared length), and 1 in the last component. On the circle's axis every point is as near: the
+    one toward the coordinate axis along which ``axis`` is smallest."""
+    q = x - m
+    qp = q - axis * (dot3(q, axis) / axis2)
+    qp2 = dot3(qp, qp)
+    if qp2 == wp.float64(0.0):
+        b = int(0)
+        if wp.abs(axis[1]) < wp.abs(axis[b]):
+            b = 1
+        if wp.abs(axis[2]) < wp.abs(axis[b]):
+            b = 2
+        unit = wp.vec3d(0.0)
+        unit[b] = wp.float64(1.0)
+        qp = cross3(axis, unit)
+        qp2 = dot3(qp, qp)
+    z = m + qp * wp.sqrt(rc2 / qp2)
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+
+
+@wp.func
 def circle_point(x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64) -> wp.vec4d:
     """The point nearest to x on the circle where the inflated spheres (ci, big_i) and (cj, big_j) meet, and 1 in
     the last component; 0 there when they do not meet in a circle. On the circle's axis every point is as near:
@@ -1401,22 +1423,7 @@ def circle_point(x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big
     rc2 = bi2 - (frac * frac) * l2
     if rc2 <= wp.float64(0.0):
         return out
-    m = ci + e * frac
-    q = x - m
-    qp = q - e * (dot3(q, e) / l2)
-    qp2 = dot3(qp, qp)
-    if qp2 == wp.float64(0.0):
-        b = int(0)
-        if wp.abs(e[1]) < wp.abs(e[b]):
-            b = 1
-        if wp.abs(e[2]) < wp.abs(e[b]):
-            b = 2
-        unit = wp.vec3d(0.0)
-        unit[b] = wp.float64(1.0)
-        qp = cross3(e, unit)
-        qp2 = dot3(qp, qp)
-    z = m + qp * wp.sqrt(rc2 / qp2)
-    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+    return circle_nearest(x, ci + e * frac, e, l2, rc2)
 
 
 @wp.func
@@ -1695,22 +1702,7 @@ def wall_circle_point(x: wp.vec3d, c: wp.vec3d, big: wp.float64, pl: wp.vec4, rh
     rc2 = big * big - (gc * gc) / nn
     if not (rc2 > wp.float64(0.0)):
         return out
-    m = c - n * (gc / nn)
-    q = x - m
-    qp = q - n * (dot3(q, n) / nn)
-    qp2 = dot3(qp, qp)
-    if qp2 == wp.float64(0.0):
-        b = int(0)
-        if wp.abs(n[1]) < wp.abs(n[b]):
-            b = 1
-        if wp.abs(n[2]) < wp.abs(n[b]):
-            b = 2
-        unit = wp.vec3d(0.0)
-        unit[b] = wp.float64(1.0)
-        qp = cross3(n, unit)
-        qp2 = dot3(qp, qp)
-    z = m + qp * wp.sqrt(rc2 / qp2)
-    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
+    return circle_nearest(x, c - n * (gc / nn), n, nn, rc2)
 
 
 @wp.func

@@ -172,6 +172,23 @@ def _visible_batch(x, y, r, w, h) -> np.ndarray:
     return area
 
 
+def _checked(centers, radii, rect, dims: int, what: str):
+    """Centres (K, dims) and radii (K,) as float64, and the rectangle's four floats, or ValueError naming the
+    argument (and the first bad disk or sphere)."""
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, dims)
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    if r.shape[0] != c.shape[0]:
+        raise ValueError(f"radii: expected shape ({c.shape[0]},) to match centers, got {r.shape}")
+    bad = ~(np.isfinite(r) & (r > 0)) | ~np.isfinite(c).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"centers/radii: {what} {k} is not finite with radius > 0: {c[k].tolist()}, {r[k]!r}")
+    x0, y0, x1, y1 = (float(v) for v in rect)
+    if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
+        raise ValueError(f"rect: expected finite (x0, y0, x1, y1) with x0 < x1 and y0 < y1, got {tuple(rect)!r}")
+    return c, r, (x0, y0, x1, y1)
+
+
 def visible_disk_areas(centers, radii, rect) -> np.ndarray:
     """Area of each disk, ordered front to back, that is visible inside an axis-aligned rectangle.
 
@@ -188,17 +205,7 @@ def visible_disk_areas(centers, radii, rect) -> np.ndarray:
     Returns:
         Visible area of each disk inside the rectangle [m^2], shape (K,), float64.
     """
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
-    r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    if r.shape[0] != c.shape[0]:
-        raise ValueError(f"radii: expected shape ({c.shape[0]},) to match centers, got {r.shape}")
-    bad = ~(np.isfinite(r) & (r > 0)) | ~np.isfinite(c).all(axis=1)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"centers/radii: disk {k} is not finite with radius > 0: {c[k].tolist()}, {r[k]!r}")
-    x0, y0, x1, y1 = (float(v) for v in rect)
-    if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
-        raise ValueError(f"rect: expected finite (x0, y0, x1, y1) with x0 < x1 and y0 < y1, got {tuple(rect)!r}")
+    c, r, (x0, y0, x1, y1) = _checked(centers, radii, rect, 2, "disk")
     if r.shape[0] == 0:
         return np.zeros(0)
     out = _visible_batch(c[None, :, 0] - x0, c[None, :, 1] - y0, r[None, :], np.array([x1 - x0]), np.array([y1 - y0]))
@@ -403,17 +410,7 @@ def visible_sphere_areas(centers, radii, rect) -> np.ndarray:
     Returns:
         Visible area of each sphere inside the rectangle [m^2], shape (K,), float64.
     """
-    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    if r.shape[0] != c.shape[0]:
-        raise ValueError(f"radii: expected shape ({c.shape[0]},) to match centers, got {r.shape}")
-    bad = ~(np.isfinite(r) & (r > 0)) | ~np.isfinite(c).all(axis=1)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"centers/radii: sphere {k} is not finite with radius > 0: {c[k].tolist()}, {r[k]!r}")
-    x0, y0, x1, y1 = (float(v) for v in rect)
-    if not (np.isfinite([x0, y0, x1, y1]).all() and x1 > x0 and y1 > y0):
-        raise ValueError(f"rect: expected finite (x0, y0, x1, y1) with x0 < x1 and y0 < y1, got {tuple(rect)!r}")
+    c, r, (x0, y0, x1, y1) = _checked(centers, radii, rect, 3, "sphere")
     if r.shape[0] == 0:
         return np.zeros(0)
     leaf = float(r.min()) / 2**SURFACE_LEVELS

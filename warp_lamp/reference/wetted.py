@@ -367,6 +367,26 @@ def _wall_faces(x, planes, rho):
     return x - n * ((_plane(planes, x) - rho) / _dot(n, n))[:, None]
 
 
+def _circle_nearest(x, m, axis, axis2, rc2, ok):
+    """Per row: the point nearest to x on the circle of centre m, squared radius rc2, in the plane normal to
+    ``axis`` (``axis2`` its squared length); on the circle's axis, the point toward the coordinate axis along which
+    ``axis`` is smallest. Rows where ``ok`` is False hold no meaningful point."""
+    q = x - m
+    qp = q - axis * (_dot(q, axis) / axis2)[:, None]
+    qp2 = _dot(qp, qp)
+    for row in np.flatnonzero((qp2 == 0.0) & ok):
+        ar = axis[row]
+        b = 0
+        if abs(ar[1]) < abs(ar[b]):
+            b = 1
+        if abs(ar[2]) < abs(ar[b]):
+            b = 2
+        qp[row] = _cross(ar, np.eye(3)[b])
+        qp2[row] = _dot(qp[row], qp[row])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return m + qp * np.sqrt(rc2 / qp2)[:, None]
+
+
 def _wall_circle_points(x, c, big, planes, rho):
     """Per row (sphere (c, big), wall plane): the point nearest to x on the circle where the inflated sphere meets
     the offset plane, and whether they meet in a circle (on the circle's axis: toward the coordinate axis along
@@ -376,22 +396,7 @@ def _wall_circle_points(x, c, big, planes, rho):
     gc = ((n[:, 0] * c[:, 0] + n[:, 1] * c[:, 1]) + n[:, 2] * c[:, 2]) - planes[:, 3] - rho
     rc2 = big * big - (gc * gc) / nn
     ok = rc2 > 0.0
-    m = c - n * (gc / nn)[:, None]
-    q = x - m
-    qp = q - n * (_dot(q, n) / nn)[:, None]
-    qp2 = _dot(qp, qp)
-    for row in np.flatnonzero((qp2 == 0.0) & ok):
-        nr = n[row]
-        b = 0
-        if abs(nr[1]) < abs(nr[b]):
-            b = 1
-        if abs(nr[2]) < abs(nr[b]):
-            b = 2
-        qp[row] = _cross(nr, np.eye(3)[b])
-        qp2[row] = _dot(qp[row], qp[row])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = m + qp * np.sqrt(rc2 / qp2)[:, None]
-    return z, ok
+    return _circle_nearest(x, c - n * (gc / nn)[:, None], n, nn, rc2, ok), ok
 
 
 def _wall_line_points(x, p1, p2, rho):
@@ -455,22 +460,7 @@ def _circle_points(x, ci, bi, cj, bj):
     frac = ((bi2 - bj * bj) + l2s) / (2.0 * l2s)
     rc2 = bi2 - (frac * frac) * l2s
     ok &= rc2 > 0.0
-    m = ci + e * frac[:, None]
-    q = x - m
-    qp = q - e * (_dot(q, e) / l2s)[:, None]
-    qp2 = _dot(qp, qp)
-    for row in np.flatnonzero((qp2 == 0.0) & ok):
-        er = e[row]
-        b = 0
-        if abs(er[1]) < abs(er[b]):
-            b = 1
-        if abs(er[2]) < abs(er[b]):
-            b = 2
-        qp[row] = _cross(er, np.eye(3)[b])
-        qp2[row] = _dot(qp[row], qp[row])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = m + qp * np.sqrt(rc2 / qp2)[:, None]
-    return z, ok
+    return _circle_nearest(x, ci + e * frac[:, None], e, l2s, rc2, ok), ok
 
 
 def _vertex_points(ci, bi, cj, bj, ck, bk):
