@@ -84,6 +84,18 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
     return d
 
 
+#: (threads per sphere, bits per thread, near list, prune from, exact-test lanes, queue capacity): a thread per
+#: voxel or shared by 32, 7 or 3 lanes (the pairs split unevenly), the queue too small for the band (the rest
+#: tested alone), the fallbacks that only lane 0 runs.
+DECOMPOSITIONS = (
+    (3, 8, 0, 0, 32, 1 << 20),
+    (8, 1, 2, 0, 7, 300),
+    (1, 32, 64, 65, 0, 0),
+    (2, 4, 64, 0, 3, 1 << 20),
+    (1, 32, 64, 0, 32, 1 << 20),
+)
+
+
 @pytest.mark.parametrize("rho", [0.0, 0.05, 0.1, 0.25, 0.7])
 def test_crossings_match_reference_on_random_scenes(device, rng, rho):
     """Voxel maps, the exact test's verdicts, per-ray crossings, each crossing's sphere, the thin chords and the
@@ -96,12 +108,13 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and d.thin > 5
         assert rho == 0.0 or d.rescued > 500  # the exact test decided many voxels
         assert sum(len(ref.crossings[a]["face"]) for a in range(3)) > 1000
-    # Every thread decomposition (threads per sphere, bits per crossing thread) and every path of the exact test
-    # (its local list of near spheres cut to 0 or 2: the second gather and the bin-walk search; no pruning of
-    # covered spheres) give the same answer.
-    for slices, bits, near, prune in ((3, 8, 0, 0), (8, 1, 2, 0), (1, 32, 64, 65)):
+    # Every thread decomposition (threads per sphere, bits per crossing thread, lanes per exact test, with the
+    # queue overflowing or not) and every path of the exact test (its local list of near spheres cut to 0 or 2:
+    # the second gather and the bin-walk search; no pruning of covered spheres) give the same answer.
+    for slices, bits, near, prune, lanes, capacity in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from = near, prune
+        surface._exact_queue(lanes, capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
 
@@ -648,7 +661,7 @@ def test_memory_is_known_before_allocation(device):
         arrays = [v for v in vars(surface).values() if isinstance(v, wp.array)]
         per_particle = {id(surface.counts), id(surface.hits), id(surface.next_in_bin), id(surface._no_active)}
         allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)
-        assert wetted_nbytes(grid, rho, keep_owners=keep) == surface.nbytes
+        assert wetted_nbytes(grid, rho, keep_owners=keep, device=device) == surface.nbytes
         assert allocated == surface.nbytes
 
 
@@ -731,9 +744,10 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune in ((3, 8, 0, 0), (8, 1, 2, 0), (1, 32, 64, 65)):
+    for slices, bits, near, prune, lanes, capacity in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from = near, prune
+        surface._exact_queue(lanes, capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
 

@@ -69,6 +69,7 @@ __all__ = [
     "band_radius",
     "check_probe_radius",
     "dilation_table",
+    "exact_queue_capacity",
     "unpack_bits",
     "voxel_box",
     "voxel_diagonal",
@@ -83,6 +84,12 @@ MAX_BINS = 1 << 24
 DEFAULT_MAX_ROUNDS = 200
 #: Device bytes per wall: its plane in the frame (one vec4) and its signed counts (3 int64).
 BYTES_PER_WALL = 40
+#: Threads that share one voxel's exact test on CUDA (a warp): the test's time on a GPU is its slowest voxel's.
+EXACT_LANES = 32
+#: The exact test's queue holds one voxel in this many of the box (the specimen's band: about one in 60) ...
+EXACT_QUEUE_PER = 16
+#: ... and at least this many.
+EXACT_QUEUE_MIN = 4096
 
 
 def check_probe_radius(probe_radius) -> float:
@@ -266,14 +273,28 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     )
 
 
-def wetted_nbytes(grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0) -> int:
+def wetted_nbytes(
+    grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0, device=None
+) -> int:
     """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: five bitmaps (blocked,
     solid, reached, fluid, band) and one per |dz| of the band's offsets (one bit per voxel each), three words per
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
-    chords there); :data:`BYTES_PER_WALL` per wall. Particles add :data:`BYTES_PER_PARTICLE` each."""
+    chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
+    :data:`EXACT_QUEUE_PER` voxels). Particles add :data:`BYTES_PER_PARTICLE` each."""
     lay = _layout(grid, check_probe_radius(probe_radius))
-    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * int(n_walls)
+    queue = 4 * (exact_queue_capacity(lay["n"], wp.get_device(device)) + 1)
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * int(n_walls) + queue
+
+
+def exact_queue_capacity(shape, device) -> int:
+    """Voxels the exact test's queue holds on ``device`` for a box of ``shape`` voxels: one in
+    :data:`EXACT_QUEUE_PER`, at least :data:`EXACT_QUEUE_MIN`, on CUDA; none on the CPU (a launch runs on one
+    thread there, where lanes would only repeat the near list's search); ``device`` None: CUDA's rule."""
+    if device is not None and not device.is_cuda:
+        return 0
+    n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
+    return min(n_vox, max(EXACT_QUEUE_MIN, n_vox // EXACT_QUEUE_PER))
 
 
 @dataclass
@@ -439,6 +460,11 @@ class WettedSurface:
         if self.device.is_cuda:
             self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
         self._columns = lay["columns"]
+        # The exact test's queue (CUDA): the band's undecided voxels, EXACT_LANES threads each, up to a capacity of
+        # one voxel in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests
+        # the voxel alone, as on the CPU, where a launch runs on one thread and lanes would only add work.
+        capacity = exact_queue_capacity(lay["n"], self.device)
+        self.nbytes += 4 * (capacity + 1)
         check_budget(
             self.nbytes,
             max_bytes,
@@ -496,6 +522,7 @@ class WettedSurface:
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
+        self._exact_queue(EXACT_LANES, capacity)
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
         self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
@@ -506,6 +533,14 @@ class WettedSurface:
         self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
+
+    def _exact_queue(self, lanes: int, capacity: int) -> None:
+        """Share each exact test of up to ``capacity`` voxels among ``lanes`` threads (0: none; the tests and the
+        benchmark's A/B use it on the CPU too); the answer is the same."""
+        self._lanes = int(lanes) if capacity > 0 else 0
+        self._capacity = int(capacity) if lanes > 0 else 0
+        self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
+        self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
 
     def _auto_slices(self, n: int) -> int:
         if not self.device.is_cuda:
@@ -664,6 +699,7 @@ class WettedSurface:
                 outputs=[self.exposed],
                 device=d,
             )
+        self.queued.zero_()
         wp.launch(
             K.wet_classify,
             dim=nw * (32 // self._bits),
@@ -680,10 +716,32 @@ class WettedSurface:
                 self.rmax,
                 self.exposed,
                 self._bits,
+                self._capacity,
             ],
-            outputs=[self.fluid, self.diag],
+            outputs=[self.fluid, self.diag, self.queue, self.queued],
             device=d,
         )
+        if self._capacity > 0:
+            wp.launch(
+                K.wet_classify_lanes,
+                dim=self._capacity * self._lanes,
+                inputs=[
+                    positions,
+                    radii,
+                    box,
+                    walls,
+                    self.reach,
+                    self.heads,
+                    self.next_in_bin,
+                    self.rmax,
+                    self.exposed,
+                    self.queue,
+                    self.queued,
+                    self._lanes,
+                ],
+                outputs=[self.fluid, self.diag],
+                device=d,
+            )
         if last < 4:
             return
         per_word = 32 // self._bits
