@@ -84,9 +84,7 @@ MAX_BINS = 1 << 24
 DEFAULT_MAX_ROUNDS = 200
 #: Device bytes per wall: its plane in the frame (one vec4) and its signed counts (3 int64).
 BYTES_PER_WALL = 40
-#: Threads that share one voxel's exact test on CUDA (a warp): the test's time on a GPU is its slowest voxel's.
-EXACT_LANES = 32
-#: The exact test's queue holds one voxel in this many of the box (the specimen's band: about one in 60) ...
+#: The exact test's queue (CUDA) holds one voxel in this many of the box (the specimen's tests: one in 60) ...
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
 EXACT_QUEUE_MIN = 4096
@@ -290,7 +288,7 @@ def wetted_nbytes(
 def exact_queue_capacity(shape, device) -> int:
     """Voxels the exact test's queue holds on ``device`` for a box of ``shape`` voxels: one in
     :data:`EXACT_QUEUE_PER`, at least :data:`EXACT_QUEUE_MIN`, on CUDA; none on the CPU (a launch runs on one
-    thread there, where lanes would only repeat the near list's search); ``device`` None: CUDA's rule."""
+    thread there, where packing the tests gains nothing); ``device`` None: CUDA's rule."""
     if device is not None and not device.is_cuda:
         return 0
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
@@ -460,9 +458,9 @@ class WettedSurface:
         if self.device.is_cuda:
             self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
         self._columns = lay["columns"]
-        # The exact test's queue (CUDA): the band's undecided voxels, EXACT_LANES threads each, up to a capacity of
-        # one voxel in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests
-        # the voxel alone, as on the CPU, where a launch runs on one thread and lanes would only add work.
+        # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
+        # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
+        # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
         capacity = exact_queue_capacity(lay["n"], self.device)
         self.nbytes += 4 * (capacity + 1)
         check_budget(
@@ -522,7 +520,7 @@ class WettedSurface:
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
-        self._exact_queue(EXACT_LANES, capacity)
+        self._exact_queue(capacity)
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
         self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
@@ -534,11 +532,10 @@ class WettedSurface:
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
-    def _exact_queue(self, lanes: int, capacity: int) -> None:
-        """Share each exact test of up to ``capacity`` voxels among ``lanes`` threads (0: none; the tests and the
-        benchmark's A/B use it on the CPU too); the answer is the same."""
-        self._lanes = int(lanes) if capacity > 0 else 0
-        self._capacity = int(capacity) if lanes > 0 else 0
+    def _exact_queue(self, capacity: int) -> None:
+        """Queue up to ``capacity`` exact tests for one thread each (0: none; the tests and the benchmark's A/B
+        set it on either device); the answer is the same."""
+        self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
 
@@ -723,8 +720,8 @@ class WettedSurface:
         )
         if self._capacity > 0:
             wp.launch(
-                K.wet_classify_lanes,
-                dim=self._capacity * self._lanes,
+                K.wet_classify_queued,
+                dim=self._capacity,
                 inputs=[
                     positions,
                     radii,
@@ -737,7 +734,6 @@ class WettedSurface:
                     self.exposed,
                     self.queue,
                     self.queued,
-                    self._lanes,
                 ],
                 outputs=[self.fluid, self.diag],
                 device=d,

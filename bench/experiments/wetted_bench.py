@@ -54,7 +54,7 @@ def grid_for(scene, cell, rho):
     return wl.LampGrid(lo, hi, cell)
 
 
-def bench_scene(name, scene, cell, rho_d, device, repeats, lanes=None):
+def bench_scene(name, scene, cell, rho_d, device, repeats, queue=None):
     rho = rho_d * 2.0 * float(scene.radii.mean())
     grid = grid_for(scene, cell, rho)
     n = scene.n
@@ -67,12 +67,12 @@ def bench_scene(name, scene, cell, rho_d, device, repeats, lanes=None):
     lamp = wl.ShiningLamp(grid, device=device)
     lamp.update(pos, rad, in_frame=True)
     surf = WettedSurface(grid, probe_radius=rho, device=device)
-    if lanes is not None and hasattr(surf, "_exact_queue"):
-        # The exact test's lanes (0: one thread per voxel, as before the queue); the capacity as the surface sets it.
+    if queue is not None and hasattr(surf, "_exact_queue"):
+        # The exact tests queued (1, the capacity CUDA gets) or tested where the band's words are (0: as before).
         from warp_lamp.wetted import exact_queue_capacity
 
-        surf._exact_queue(lanes, exact_queue_capacity(surf.shape, None))
-        out["lanes"] = lanes
+        surf._exact_queue(exact_queue_capacity(surf.shape, None) if queue else 0)
+        out["queue"] = queue
     surf.update(pos, rad)
     d = surf.diagnostics()
     out["fluid_hash"] = hashlib.sha1(surf.fluid.numpy().tobytes() + surf.counts_numpy().tobytes()).hexdigest()
@@ -126,7 +126,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=None, help="timed repeats (default 50 on CUDA, 5 on the CPU)")
     ap.add_argument("--rho-diameters", type=float, nargs="*", default=[0.5], help="rho in mean diameters")
     ap.add_argument("--only", nargs="*", default=None, help="scenes to run: specimen, lattice, slot (default all)")
-    ap.add_argument("--lanes", type=int, nargs="*", default=[None], help="exact-test lanes to compare (0: none)")
+    ap.add_argument("--queue", type=int, nargs="*", default=[None], help="exact tests queued: 1, or not: 0 (A/B)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     wp.config.log_level = wp.LOG_WARNING
@@ -137,14 +137,14 @@ def main():
         if args.only and name not in args.only:
             continue
         for rho_d in args.rho_diameters:
-            for lanes in args.lanes:
+            for queue in args.queue:
                 repeats = args.repeats or (50 if device.is_cuda else 5)
-                row = bench_scene(name, scene, cell, rho_d, device, repeats, lanes)
+                row = bench_scene(name, scene, cell, rho_d, device, repeats, queue)
                 rows.append(row)
                 keys = [k for k in row if k.endswith("_s")]
                 times = ", ".join(f"{k[:-2]} {row[k] * 1e3:.3f} ms" for k in keys)
                 print(
-                    f"{name} (rho = {rho_d:g} d, lanes {lanes}, {row['voxels']} voxels, {row['rounds']} rounds, "
+                    f"{name} (rho = {rho_d:g} d, queue {queue}, {row['voxels']} voxels, {row['rounds']} rounds, "
                     f"{row['uncertain']} tested, {row['fluid_hash'][:8]}): {times}",
                     flush=True,
                 )

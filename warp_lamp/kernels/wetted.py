@@ -2109,8 +2109,6 @@ def probe_reaches(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    lane: wp.int32,
-    lanes: wp.int32,
 ) -> wp.bool:
     """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
@@ -2119,12 +2117,7 @@ def probe_reaches(
     in increasing index order, triples only on circles that pass within rho); then those with walls
     (``wall_search``). Only exposed spheres (``wet_expose``) within r + 2 rho of x can carry a reachable candidate
     within rho. For a voxel centre the caller has checked the solid map (``|x - c|^2 < r^2`` or ``g < 0``); for
-    another point it is checked here.
-
-    ``lanes`` threads may share one x (``wet_classify_lanes``): each builds the same near list, lane ``lane`` tries
-    the faces and the pairs (with their triples) whose number is ``lane`` modulo ``lanes``, and lane 0 alone the
-    fallbacks and the walls. x is fluid when any lane finds a candidate: the same answer as one thread's
-    (``lanes`` 1), since a candidate's check does not depend on which others were tried before it."""
+    another point it is checked here."""
     rho = box.rho
     rho2 = rho * rho
     if lattice == 0:
@@ -2142,7 +2135,7 @@ def probe_reaches(
                         if dot3(v, v) < r * r:
                             return False
                         q = next_in_bin[q]
-        if lane == 0 and (
+        if (
             candidate_check(x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
             == CANDIDATE_OK
         ):
@@ -2198,8 +2191,6 @@ def probe_reaches(
                                 cnt += 1
                         i = next_in_bin[i]
         if cnt > limit:
-            if lane != 0:
-                return False
             if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                 return True
             return wall_search(
@@ -2236,8 +2227,6 @@ def probe_reaches(
     hint = int(-1)
     # Faces: the commonest answer, so first.
     for a in range(cnt):
-        if a % lanes != lane:
-            continue
         i = ids[a]
         c = centre_of(i, positions)
         v = x - c
@@ -2254,15 +2243,11 @@ def probe_reaches(
                 if res >= 0:
                     hint = res
     # Edges, and the vertices on every circle that passes within rho of x.
-    pair = int(-1)
     for a in range(cnt):
         i = ids[a]
         ci = centre_of(i, positions)
         big_i = wp.float64(radii[i]) + rho
         for b in range(a + 1, cnt):
-            pair += 1
-            if pair % lanes != lane:
-                continue
             j = ids[b]
             cj = centre_of(j, positions)
             big_j = wp.float64(radii[j]) + rho
@@ -2308,8 +2293,6 @@ def probe_reaches(
                                         return True
                                     if res >= 0:
                                         hint = res
-    if lane != 0:
-        return False
     return wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
 
 
@@ -2396,8 +2379,8 @@ def wet_classify(
     """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA): every voxel of the band (within rho +
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
     ``capacity`` > 0 the first ``capacity`` such voxels go to ``queue`` (their word * 32 + bit, in no set order;
-    ``queued[0]``, zeroed before, counts them all) for ``wet_classify_lanes``, and the thread tests the rest itself.
-    A thread sets only its own bits of ``fluid``."""
+    ``queued[0]``, zeroed before, counts them all) for ``wet_classify_queued``, and the thread tests the rest
+    itself. A thread sets only its own bits of ``fluid``."""
     t = wp.tid()
     splits = 32 / bits
     idx = t / splits
@@ -2422,7 +2405,7 @@ def wet_classify(
                 queue[slot] = idx * 32 + b
                 continue
         x = voxel_point(w, b, wjk, box)
-        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, 0, 1):
+        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
     if add != wp.uint32(0):
@@ -2435,7 +2418,7 @@ def wet_classify(
 
 
 @wp.kernel
-def wet_classify_lanes(
+def wet_classify_queued(
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
     box: WetBox,
@@ -2447,17 +2430,13 @@ def wet_classify_lanes(
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
-    lanes: wp.int32,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
 ):
-    """``lanes`` threads per queued voxel (``wet_classify``), launched for the queue's capacity: they split its
-    exact test (``probe_reaches``), so that the slowest voxel's search, which sets a launch's time on a GPU, is
-    shared. The voxel's bit is set by whichever lanes find it fluid, and counted once."""
-    t = wp.tid()
-    slot = t / lanes
-    lane = t - slot * lanes
+    """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
+    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle."""
+    slot = wp.tid()
     if slot >= queued[0]:
         return
     v = queue[slot]
@@ -2465,12 +2444,9 @@ def wet_classify_lanes(
     b = v - idx * 32
     wjk = word_coords(box, idx)
     x = voxel_point(wjk[0], b, wjk, box)
-    if probe_reaches(
-        x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls, lane, lanes
-    ):
-        bit = wp.uint32(1) << wp.uint32(b)
-        if (wp.atomic_or(fluid, idx, bit) & bit) == wp.uint32(0):
-            wp.atomic_add(diag, DIAG_RESCUED, 1)
+    if probe_reaches(x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+        wp.atomic_add(diag, DIAG_RESCUED, 1)
 
 
 # --- thin chords ----------------------------------------------------------------------------------------------
@@ -2643,9 +2619,7 @@ def wet_thin(
                     continue
                 wp.atomic_add(diag, DIAG_GAPS, 1)
                 gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
-                if not probe_reaches(
-                    gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, 0, 1
-                ):
+                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                     continue
             # This chord starts a merged interval: walk the chords after it in order while they join it.
             cur = me.hi
@@ -2676,7 +2650,7 @@ def wet_thin(
                         wp.atomic_add(diag, DIAG_GAPS, 1)
                         gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
                         if probe_reaches(
-                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, 0, 1
+                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
                         ):
                             join = 0
                     if join != 0:

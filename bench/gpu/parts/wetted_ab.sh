@@ -1,4 +1,0 @@
-#!/usr/bin/env bash
-# The exact test's lanes, A/B in one run (0: one thread per voxel; 1: the queue alone; 4, 8, 32 lanes): specimen, slot.
-python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 --lanes 0 1 4 8 32 \
-  --only specimen slot --out "$OUT/wetted_ab.json" 2>&1 | grep lanes | sed 's/first_replay.*all_classify/classify/'
