@@ -282,6 +282,46 @@ def test_particles_outside_the_grid_are_counted_and_still_balance(device, rng):
     assert_matches_reference(lamp, centers, radii, criterion=1)
 
 
+def test_outside_is_judged_on_every_lit_axis_alone(device):
+    """A sphere that pokes out of the box along x only is counted outside by the z lamps alone (their grid spans x
+    and y), by the x lamps alone not; a sphere inside is counted by neither."""
+    grid = wl.LampGrid([0.0] * 3, [4.0] * 3, 0.25)
+    radii = np.array([0.5, 0.5])
+    for x, lamps, want in ((0.25, ("-z", "+z"), 1), (0.25, ("-x", "+x"), 0), (2.0, ("-z", "+z"), 0)):
+        centers = np.array([[x, 2.0, 2.0], [2.0, 3.0, 1.0]])
+        d = lamp_update(centers, radii, grid=grid, lamps=lamps, device=device).diagnostics()
+        assert d.outside == want, (x, lamps)
+
+
+def test_memo_form_grid_is_a_box_only_when_its_grids_agree():
+    """``LampGrid.from_grids`` is the box form (what the following grid and the wetted mode need) only when every
+    pair of grids spanning an axis shares its corner, cell size and count there: a grid whose cells differ along
+    one axis from its neighbour's, with the same count, is not; nor one whose count differs, with the same cells."""
+    corners, lengths, counts = np.zeros((3, 2)), np.full((3, 2), 4.0), np.full((3, 2), 16)
+    assert wl.LampGrid.from_grids(corners, lengths, counts).is_box
+    other_cells = lengths.copy()
+    other_cells[0, 0] = 2.0  # the x lamps' grid: 16 cells along y of 0.125 m, the z lamps' 16 of 0.25 m
+    assert not wl.LampGrid.from_grids(corners, other_cells, counts).is_box
+    other_counts, longer = counts.copy(), lengths.copy()
+    other_counts[0, 0], longer[0, 0] = 32, 8.0  # 32 cells of 0.25 m along y against 16
+    assert not wl.LampGrid.from_grids(corners, longer, other_counts).is_box
+    shifted = corners.copy()
+    shifted[0, 0] = 0.5
+    assert not wl.LampGrid.from_grids(shifted, lengths, counts).is_box
+
+
+def test_cpu_depth_pass_runs_one_thread_per_sphere():
+    """On the CPU, where a launch runs on one thread, the depth pass is not split (split 0) for any particle count;
+    on a GPU it is split at least once per (sphere, axis)."""
+    from warp_lamp.estimators import _auto_split
+
+    cpu = wp.get_device("cpu")
+    assert [_auto_split(n, cpu) for n in (0, 1, 1000, 10**6)] == [0, 0, 0, 0]
+    for name in ("cuda:0",) if wp.get_cuda_device_count() else ():
+        gpu = wp.get_device(name)
+        assert _auto_split(0, gpu) == 0 and all(_auto_split(n, gpu) >= 1 for n in (1, 1000, 10**7))
+
+
 def test_no_particles(device):
     """N = 0: lamp_forces returns an empty (0, 3) array and a lamp update is a no-op."""
     assert wl.lamp_forces(np.zeros((0, 3)), np.zeros(0), P, device=device).shape == (0, 3)

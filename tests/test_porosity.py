@@ -12,6 +12,7 @@ import importlib
 import inspect
 import itertools
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -398,6 +399,21 @@ def test_union_budget_covers_the_per_cell_counts():
     with pytest.raises(ValueError, match=r"subdivisions: \(1, 1, 1\) on shape \(100, 100, 100\) .* max_bytes = "):
         wl.porosity(C3, R3, [-1] * 3, [2] * 3, shape, subdivisions=1, max_bytes=10**6)
     assert wl.porosity(C3, R3, [-1] * 3, [2] * 3, shape, subdivisions=1, max_bytes=9 * 10**6).shape == shape
+
+
+def test_midpoint_warns_exactly_when_rounding_doubles_the_volume():
+    """The midpoint method's warning follows its rule: it rounds a radius below a sub-cell up to one whole sub-cell
+    (volume 1), so spheres of radius 0.48 sub-cells get 1 / (4/3 pi 0.48^3) = 2.16 times their volume (warns,
+    over :data:`MIDPOINT_VOLUME_FACTOR` = 2) and spheres of 0.52 get 1.70 (silent)."""
+    centers = np.array([[2.5, 2.5, 2.5], [5.5, 5.5, 5.5]])
+    for radius, warns in ((0.48, True), (0.52, False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            wl.porosity(centers, radius, [0] * 3, [8] * 3, (2, 2, 2), method="midpoint", subdivisions=4)
+        said = [str(w.message) for w in caught if "subdivisions: with" in str(w.message)]
+        assert bool(said) == warns, (radius, said)
+        if warns:
+            assert "gives them 2 times their true volume" in said[0]
 
 
 def test_porosity_warns_when_the_box_and_the_spheres_cannot_match():

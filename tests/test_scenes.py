@@ -43,7 +43,9 @@ def test_lattice_box_and_lone_sphere_are_seeded():
     assert a.n == 125 and a.radii.min() >= 0.4 and a.radii.max() <= 0.5
     assert np.abs(a.centers - np.round(a.centers)).max() <= 0.05
     s = scene_lone_sphere(0.5, 0.25, seed=3)
+    assert s.centers.shape == (1, 3) and s.radii.shape == (1,)
     assert s.n == 1 and np.all((s.centers >= 0) & (s.centers < 0.25))
+    np.testing.assert_array_equal(s.center, s.centers[0])
 
 
 def test_overlapping_polydisperse_ball_meets_its_spec():
