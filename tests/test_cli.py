@@ -767,6 +767,15 @@ def test_yade_text_export(tmp_path):
         read_particles(write(tmp_path / "w.txt", "#format x_y_z_r\n" + "\n".join(bad) + "\n"))
 
 
+def test_yade_text_with_one_particle(tmp_path):
+    """A text export holding a single particle, with or without a #format line, reads as that one particle."""
+    for name, head in (("one.txt", ""), ("onef.txt", "#format x_y_z_r\n")):
+        c, r, ids, _ = read_particles(write(tmp_path / name, head + "0.5 1.5 -2 0.25\n"))
+        np.testing.assert_array_equal(c, [[0.5, 1.5, -2.0]])
+        np.testing.assert_array_equal(r, [0.25])
+        assert ids is None
+
+
 def test_units_guess():
     """Metres, millimetres (or no unit) and the implausible ends are told apart by the median radius."""
     assert "metres" in guess_units(np.array([0.0025]))
