@@ -269,12 +269,14 @@ def test_tool_meets_balls_at_the_closest_point_of_its_box(device, rng):
 
 def test_box_specimen_and_bond_pairs(rng):
     """The box specimen: inside its box, mean diameter and Rmax/Rmin as asked, no overlap above 1% of the smaller
-    radius; bond_pairs finds exactly the pairs a brute-force search finds closer than the gap asked."""
+    radius, its name giving the box in mm; bond_pairs finds exactly the pairs a brute-force search finds closer
+    than the gap asked."""
     br = load_example("bonded_rock")
     d = 0.5e-3
     size = np.array([8.0, 6.0, 4.0]) * d
     s = scene_box_specimen(size, d, cache=False)
     c, r = s.centers, s.radii
+    assert s.name == f"box specimen 4 x 3 x 2 mm, {s.n} particles"
     assert abs(2 * r.mean() / d - 1) < 0.01 and abs(r.max() / r.min() - 1.66) < 0.05
     tol = 0.011 * r[:, None]
     assert np.all(c - r[:, None] >= -tol) and np.all(c + r[:, None] <= size + tol)
