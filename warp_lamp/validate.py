@@ -125,6 +125,12 @@ def resolve_device(device=None, *, name: str = "device"):
         raise ValueError(f"{name}: no Warp device {device!r}; present: {present}") from None
 
 
+def _diameter_and_spread(centers: np.ndarray, radii: np.ndarray) -> tuple[float, float]:
+    """The mean diameter and the widest extent of the centres along an axis, the two lengths the unit hints
+    compare."""
+    return 2.0 * float(np.mean(radii)), float(np.max(np.ptp(centers, axis=0)))
+
+
 def unit_mixup_hint(centers: np.ndarray, radii: np.ndarray) -> str:
     """A sentence for an error when the radii look tiny against the spread of the centres, the sign of centres and
     radii in different units (centres in millimetres, radii in metres); '' when they look consistent.
@@ -138,8 +144,7 @@ def unit_mixup_hint(centers: np.ndarray, radii: np.ndarray) -> str:
     """
     if len(radii) < 2:
         return ""
-    d = 2.0 * float(np.mean(radii))
-    spread = float(np.max(np.ptp(centers, axis=0)))
+    d, spread = _diameter_and_spread(centers, radii)
     dense = max(1.0, len(radii) ** (1.0 / 3.0)) * d
     if spread <= 100.0 * dense:
         return ""
@@ -299,8 +304,7 @@ def radii_unit_hint(centers: np.ndarray, radii: np.ndarray) -> str:
     """
     if len(radii) < 8:
         return ""
-    d = 2.0 * float(np.mean(radii))
-    spread = float(np.max(np.ptp(centers, axis=0)))
+    d, spread = _diameter_and_spread(centers, radii)
     if d <= 10.0 * spread:
         return ""
     return (

@@ -280,9 +280,13 @@ def wetted_nbytes(
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
     :data:`EXACT_QUEUE_PER` voxels). Particles add :data:`BYTES_PER_PARTICLE` each."""
-    lay = _layout(grid, check_probe_radius(probe_radius))
-    queue = 4 * (exact_queue_capacity(lay["n"], wp.get_device(device)) + 1)
-    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * int(n_walls) + queue
+    return _nbytes(_layout(grid, check_probe_radius(probe_radius)), keep_owners, int(n_walls), wp.get_device(device))
+
+
+def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device) -> int:
+    """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
+    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue
 
 
 def exact_queue_capacity(shape, device) -> int:
@@ -442,7 +446,7 @@ class WettedSurface:
         lay = _layout(grid, self.probe_radius)
         #: Walls that bound the fluid.
         self.n_walls = len(planes)
-        self.nbytes = lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * self.n_walls
+        self.nbytes = _nbytes(lay, keep_owners, self.n_walls, self.device)
         self._faces = lay["faces"]
         self._seg = lay["seg"]
         self._n_seg = lay["n_seg"]
@@ -458,11 +462,6 @@ class WettedSurface:
         if self.device.is_cuda:
             self._bits = 32 // int(min(32, max(1, 2 ** int(np.log2(max(1, (1 << 23) // total))))))
         self._columns = lay["columns"]
-        # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
-        # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
-        # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
-        capacity = exact_queue_capacity(lay["n"], self.device)
-        self.nbytes += 4 * (capacity + 1)
         check_budget(
             self.nbytes,
             max_bytes,
@@ -520,7 +519,10 @@ class WettedSurface:
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
-        self._exact_queue(capacity)
+        # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
+        # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
+        # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
+        self._exact_queue(exact_queue_capacity(lay["n"], d))
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
         self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
@@ -696,7 +698,8 @@ class WettedSurface:
                 outputs=[self.exposed],
                 device=d,
             )
-        self.queued.zero_()
+        if self._capacity > 0:
+            self.queued.zero_()
         wp.launch(
             K.wet_classify,
             dim=nw * (32 // self._bits),

@@ -2346,10 +2346,10 @@ def wet_expose(
 
 
 @wp.func
-def voxel_point(w: wp.int32, b: wp.int32, wjk: wp.vec3i, box: WetBox) -> wp.vec3d:
-    """Centre of bit b of x-word w in row (j, k) = wjk[1], wjk[2], in frame coordinates [m]."""
+def voxel_point(wjk: wp.vec3i, b: wp.int32, box: WetBox) -> wp.vec3d:
+    """Centre of bit b of x-word wjk[0] in row (j, k) = wjk[1], wjk[2], in frame coordinates [m]."""
     return wp.vec3d(
-        (wp.float64(32 * w + b) + wp.float64(0.5)) * box.h[0],
+        (wp.float64(32 * wjk[0] + b) + wp.float64(0.5)) * box.h[0],
         (wp.float64(wjk[1]) + wp.float64(0.5)) * box.h[1],
         (wp.float64(wjk[2]) + wp.float64(0.5)) * box.h[2],
     )
@@ -2404,7 +2404,7 @@ def wet_classify(
             if slot < capacity:
                 queue[slot] = idx * 32 + b
                 continue
-        x = voxel_point(w, b, wjk, box)
+        x = voxel_point(wjk, b, box)
         if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
@@ -2443,7 +2443,7 @@ def wet_classify_queued(
     idx = v / 32
     b = v - idx * 32
     wjk = word_coords(box, idx)
-    x = voxel_point(wjk[0], b, wjk, box)
+    x = voxel_point(wjk, b, box)
     if probe_reaches(x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls):
         wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
         wp.atomic_add(diag, DIAG_RESCUED, 1)
