@@ -269,6 +269,26 @@ def _sample(session: Path, code: Path, rate: float, drawing: bool = False) -> tu
     return sum(k < rate for k in keys.values()), len(keys), dropped
 
 
+def _part(session: Path, part: str) -> int:
+    """Keep one part of a sample (``K/N``: every N-th mutant in (module, position) order from the K-th, so that each
+    part has its share of every module), marking the others skipped, so that N runs on N cores each run a part of
+    one sample; ``merge`` joins their results. Returns the mutants kept."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome, WorkResult
+
+    k, n = (int(x) for x in part.split("/"))
+    with use_db(str(session), WorkDB.Mode.open) as db:
+        pending = sorted(
+            db.pending_work_items,
+            key=lambda w: (str(w.mutations[0].module_path), w.mutations[0].start_pos, w.mutations[0].occurrence),
+        )
+        other = [w.job_id for i, w in enumerate(pending) if i % n != k]
+        db.set_multiple_results(
+            other, WorkResult(output=f"in another part than {part}", worker_outcome=WorkerOutcome.SKIPPED)
+        )
+    return len(pending) - len(other)
+
+
 def _forget(session: Path, jobs: list[str]) -> None:
     """Delete these jobs' results, so that ``cosmic-ray exec`` runs them (again)."""
     with sqlite3.connect(session) as con:
@@ -350,11 +370,13 @@ def cmd_run(args) -> None:
         commit, tests = _tree(args.code, args.tests or args.code, code)
         (run / "cr.toml").write_text(_config(code, args.timeout, scope=args.scope))
         (run / "meta.json").write_text(
-            json.dumps({"code": commit, "tests": tests, "rate": args.rate, "scope": args.scope})
+            json.dumps({"code": commit, "tests": tests, "rate": args.rate, "scope": args.scope, "part": args.part})
         )
         subprocess.run(["cosmic-ray", "init", str(run / "cr.toml"), str(session)], cwd=code, check=True)
         kept, allowed, dropped = _sample(session, code, args.rate, SCOPES[args.scope]["drawing"])
         print(f"{args.name}: {kept} mutants sampled of {allowed} in the operator set and scope", flush=True)
+        if args.part:
+            print(f"{args.name}: part {args.part}: {_part(session, args.part)} of them here", flush=True)
         if dropped:
             print(f"{args.name}: {dropped} mutants of functions that draw figures left out", flush=True)
         if args.map:
@@ -568,6 +590,36 @@ def cmd_report(args) -> None:
             print(f"survived {r['module']}:{r['line']} {r['operator']} {r.get('stage', '')}\n    {diff}")
 
 
+def cmd_merge(args) -> None:
+    """Join the results of the parts of one sample (``run --part``) into results/NAME.json."""
+    parts = [json.loads((RESULTS / f"{p}.json").read_text()) for p in args.parts]
+    heads = [
+        {k: v for k, v in p["summary"].items() if k in ("code", "tests", "rate", "scope", "confirm")} for p in parts
+    ]
+    if any(h != heads[0] for h in heads):
+        sys.exit(f"merge: the parts differ in {heads}")
+    rows = sorted((r for p in parts for r in p["mutants"]), key=lambda r: (r["module"], r["line"], r["operator"]))
+    done = [r for r in rows if r["outcome"] != "pending"]
+    killed = [r for r in done if r["outcome"] in ("killed", "timeout", "incompetent")]
+    stages = collections.Counter(r.get("stage", "earlier run") for r in done)
+    summary = {
+        **heads[0],
+        "parts": args.parts,
+        "baseline_s": [p["summary"].get("baseline_s") for p in parts],
+        "sample": f"key < {heads[0]['rate']}",
+        "sampled": len(rows),
+        "done": len(done),
+        "killed": len(killed),
+        "timeouts": sum(r["outcome"] == "timeout" for r in done),
+        "survived": len(done) - len(killed),
+        "score": len(killed) / len(done) if done else None,
+        "decided_by": dict(sorted(stages.items())),
+        "score_is": "exact" if not stages.get("map only") else "a lower bound (survivors not confirmed)",
+    }
+    (RESULTS / f"{args.name}.json").write_text(json.dumps({"summary": summary, "mutants": rows}, indent=1) + "\n")
+    print(json.dumps(summary, indent=1))
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -578,6 +630,7 @@ def main(argv=None) -> None:
     run.add_argument("--rate", type=float, default=0.01, help="fraction of the operator set's mutants sampled")
     run.add_argument("--scope", choices=sorted(SCOPES), default="all", help="the files mutated (SCOPES)")
     run.add_argument("--timeout", type=float, default=300.0, help="seconds per mutant; past it, killed (timeout)")
+    run.add_argument("--part", help="K/N: run only the K-th of N interleaved parts of the sample (see merge)")
     rerun = sub.add_parser("rerun", help="run another revision's tests on the survivors of a finished run")
     rerun.add_argument("name")
     rerun.add_argument("new")
@@ -597,12 +650,17 @@ def main(argv=None) -> None:
     report = sub.add_parser("report", help="write results/NAME.json from a session and list the survivors")
     report.add_argument("name")
     report.add_argument("--below", type=float, help="only the mutants whose sample key is below this (a subsample)")
+    merge = sub.add_parser("merge", help="join the results of a sample's parts (run --part K/N) into results/NAME.json")
+    merge.add_argument("name")
+    merge.add_argument("parts", nargs="+", help="the parts' result names")
     test = sub.add_parser("test-mutant", help="(cosmic-ray's per-mutant command in a --map session)")
     test.add_argument("run")
     args = parser.parse_args(argv)
     if getattr(args, "confirm", False) and not args.map:
         parser.error("--confirm needs --map")
-    {"run": cmd_run, "rerun": cmd_rerun, "report": cmd_report, "test-mutant": cmd_test_mutant}[args.command](args)
+    {"run": cmd_run, "rerun": cmd_rerun, "report": cmd_report, "merge": cmd_merge, "test-mutant": cmd_test_mutant}[
+        args.command
+    ](args)
 
 
 if __name__ == "__main__":
