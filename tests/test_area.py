@@ -963,3 +963,10 @@ def test_visible_area_reference_on_an_overlapping_packing_matches_a_raster():
     rms = np.sqrt(np.mean((a - ras) ** 2)) / disk
     assert rms < 1.5e-4, rms
     assert np.sqrt(np.mean((by_centre - ras) ** 2)) / disk > 20 * rms
+
+
+def test_reference_refuses_radii_that_do_not_match_the_centres():
+    """The float64 reference checks its inputs like the library: radii of another length are refused naming both
+    shapes."""
+    with pytest.raises(ValueError, match=r"radii: expected shape \(5,\) to match centers, got \(4,\)"):
+        visible_area_reference(np.zeros((5, 3)), np.ones(4))

@@ -666,16 +666,20 @@ def write_vtk(
 def test_vtk_points_in_every_encoding(tmp_path, options):
     """ASCII, inline base64, appended base64 and raw, UInt32/UInt64 headers, zlib, big-endian, .vtu and .vtp."""
     ext = ".vtp" if options.get("kind") == "PolyData" else ".vtu"
-    check(read_particles(write_vtk(tmp_path / f"p{ext}", **options)))
+    info = check(read_particles(write_vtk(tmp_path / f"p{ext}", **options)))
+    assert f"{options.get('kind', 'UnstructuredGrid')}, 1 piece, point array " in info.columns
 
 
 def test_vtk_written_by_pyevtk_reads_back(tmp_path):
-    """What warp_lamp's own VTK export (pyevtk: raw appended, UInt64 headers) writes reads back bitwise."""
+    """What warp_lamp's own VTK export (pyevtk: raw appended, UInt64 headers) writes reads back bitwise, with the
+    whole-file values (field data) in the file."""
     pytest.importorskip("pyevtk")
     from warp_lamp.export import write_vtk_particles
 
-    path = write_vtk_particles(tmp_path / "p", CENTERS, RADII, force=np.ones((9, 3)))
+    path = write_vtk_particles(tmp_path / "p", CENTERS, RADII, force=np.ones((9, 3)), field_data={"pressure": 2.5e6})
     check(read_particles(path), ids=False, rtol=0)
+    head = open(path, "rb").read().split(b"<AppendedData")[0]
+    assert b"<FieldData>" in head and b'Name="pressure"' in head  # the run's inputs travel with the particles
 
 
 def test_vtk_without_a_radius_array_or_broken(tmp_path):

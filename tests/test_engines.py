@@ -363,3 +363,17 @@ def test_alpha_for_probe_is_the_power_distance():
 
     for rho, r in ((0.45, 0.45), (0.9, 0.45), (0.005, 0.0025)):
         assert np.isclose(alpha_for_probe(rho, r), (rho + r) ** 2 - r**2, rtol=1e-15)
+
+
+def test_call_timings_split_each_call_into_its_parts():
+    """An adapter call's four marks (before read, after read, after the lamp, after write) give the three parts on
+    each clock, and the medians leave out the first call."""
+    from warp_lamp.engines.core import CallTimings
+
+    t = CallTimings()
+    t.record([(0.0, 10.0), (1.0, 10.5), (3.0, 11.5), (6.0, 13.0)])
+    t.record([(10.0, 20.0), (12.0, 21.0), (15.0, 23.0), (19.0, 26.0)])
+    assert t.wall == {"read": [1.0, 2.0], "lamp": [2.0, 3.0], "write": [3.0, 4.0]}
+    assert t.cpu == {"read": [0.5, 1.0], "lamp": [1.0, 2.0], "write": [1.5, 3.0]}
+    cost = t.cost()
+    assert cost["calls"] == 2 and cost["wall"]["total"] == 9.0 and cost["cpu"]["total"] == 6.0

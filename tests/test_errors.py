@@ -147,6 +147,9 @@ def test_midpoint_at_tiny_r_over_h_warns_naming_subdivisions():
         warnings.simplefilter("error")
         wl.porosity(c, r * 50, [0, 0, 0], [1, 1, 1], (10, 10, 10), method="midpoint", subdivisions=8)
         wl.porosity(c, r, [0, 0, 0], [1, 1, 1], (2, 2, 2), method="voxel", subdivisions=8)
+    # One sub-cell exactly: the midpoint sphere of radius 1 is 7 sub-cells, 1.67 times the true volume.
+    with pytest.warns(RuntimeWarning, match=r"spheres are 1 sub-cell in radius \(median\)"):
+        wl.porosity([[2.5, 2.5, 2.5]], [1.0], [0, 0, 0], [5, 5, 5], (1, 1, 1), method="midpoint", subdivisions=5)
 
 
 def test_tensor_and_per_axis_pressures_follow_one_rule():
@@ -286,6 +289,10 @@ def test_forces_that_would_leave_the_exact_range_are_refused():
         (lambda: wl.lamp_forces(C3, R3, 1.0, cells_per_diameter=1e200), r"cells_per_diameter: "),
         (
             lambda: wl.LampGrid([0, 0, 0], [1, 1, 1], [1.0, 2**-14, 2**-14], max_bytes=math.inf),
+            r"cell_size: grid 0 has 268,435,456 cells, over the 2\*\*27",
+        ),
+        (  # every grid over: the first is named
+            lambda: wl.LampGrid([0, 0, 0], [1, 1, 1], 2**-14, max_bytes=math.inf),
             r"cell_size: grid 0 has 268,435,456 cells, over the 2\*\*27",
         ),
     ],

@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 
 from warp_lamp.scenes import (
+    relax_packing,
+    scene_box_specimen,
+    scene_cylinder_specimen,
+    scene_lattice_ball,
     scene_lattice_box,
     scene_lone_sphere,
+    scene_overlapping_box,
     scene_overlapping_polydisperse,
     scene_sphere_specimen,
 )
@@ -88,3 +93,59 @@ def test_unreachable_porosity_and_tiny_bodies_are_refused_at_once():
     with pytest.raises(ValueError, match=r"diameter: .* 3 particle diameters .* under the 5 a packing needs"):
         scene_sphere_specimen(diameter=0.015, cache=False)
     assert time.perf_counter() - t0 < 1.0
+
+
+def _worst_overlap(c, r):
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    overlap = (r[:, None] + r[None] - d) / np.minimum(r[:, None], r[None])
+    np.fill_diagonal(overlap, -1.0)
+    return overlap.max()
+
+
+def test_cylinder_and_box_specimens_pack_inside_their_containers():
+    """Fresh packings (no cache, which would hand back whatever an earlier version of the relaxation left) of the
+    triaxial cylinder and the cutting slab: every particle inside its container (the wall allowed 1% of a radius,
+    like a contact), overlaps under 1% of the smaller radius, the slab's mean diameter the one asked for and its name
+    in millimetres."""
+    cyl = scene_cylinder_specimen(diameter=0.03, height=0.03, particles=400, porosity=0.46, cache=False)
+    c, r = cyl.centers, cyl.radii
+    assert np.all(np.hypot(c[:, 0], c[:, 1]) + r <= 0.015 + 0.0101 * r)
+    assert np.all(np.abs(c[:, 2]) + r <= 0.015 + 0.0101 * r)
+    assert _worst_overlap(c, r) < 0.0101
+    assert np.ptp(c[:, 2]) > 0.03 - 4.0 * r.max()  # filled end to end, not squeezed to one face
+
+    box = scene_box_specimen((0.02, 0.02, 0.03), 0.004, cache=False)
+    c, r = box.centers, box.radii
+    assert np.all(
+        (c - r[:, None] >= -0.0101 * r[:, None]) & (c + r[:, None] <= [0.02, 0.02, 0.03] + 0.0101 * r[:, None])
+    )
+    assert _worst_overlap(c, r) < 0.0101
+    assert abs(2.0 * r.mean() / 0.004 - 1.0) < 0.05
+    assert box.name == f"box specimen 20 x 20 x 30 mm, {len(r)} particles"
+
+
+def test_overlapping_box_relaxes_to_its_overlap_inside_the_box():
+    """The paper's dense box, freshly packed: inside [0, size], overlaps at most ``max_overlap`` of a radius (it is
+    meant to keep soft-contact overlaps, so some remain), the solid fraction as asked."""
+    s = scene_overlapping_box(0.004, size=(0.03, 0.03, 0.03), solid_fraction=0.5, max_overlap=0.1, cache=False)
+    c, r = s.centers, s.radii
+    assert np.all((c - r[:, None] >= -0.101 * r[:, None]) & (c + r[:, None] <= 0.03 + 0.101 * r[:, None]))
+    assert 0.0 < _worst_overlap(c, r) <= 0.101
+    assert abs(len(r) * 4.0 / 3.0 * np.pi * 0.004**3 / 0.03**3 - 0.5) < 0.01
+
+
+def test_lattice_ball_defaults_are_the_memos_sphere_test():
+    """The quick stand-in's defaults are the memo's SphereTest dimensions: a 100 mm body of 5 mm particles."""
+    s = scene_lattice_ball()
+    assert s.radius == 0.05
+    assert np.all(np.linalg.norm(s.centers, axis=1) + s.radii <= 0.05)
+    assert np.linalg.norm(s.centers, axis=1).max() + s.radii.max() > 0.045
+    assert abs(2.0 * s.radii.mean() - 0.005) < 0.0002
+
+
+def test_coincident_particles_are_pushed_apart():
+    """Two particles placed at the same point (a random placement can do it; an import often does) have no
+    direction between them: the relaxation picks one and separates them rather than leaving them stacked."""
+    x0 = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.2, 0.2, 0.2]])
+    c = relax_packing(x0, np.full(3, 0.1), box=(np.zeros(3), np.ones(3)), device="cpu")
+    assert np.linalg.norm(c[0] - c[1]) >= 0.2 * (1.0 - 0.0099)
