@@ -418,3 +418,34 @@ def test_shining_lamp_float32_forces_round_the_exact_float64_forces(device, rng)
     assert np.all(exact.sum(axis=0) == 0.0)
     assert [math.fsum(exact[:, a]) for a in range(3)] == [0.0, 0.0, 0.0]
     np.testing.assert_array_equal(forces.numpy(), exact.astype(np.float32))
+
+
+def test_every_argument_can_be_passed_by_name():
+    """No function or method of the library has positional-only parameters: wrappers in other engines pass options by
+    name (``device=``, ``enabled=``), and a keyword-only option never silently takes a positional value."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import warp_lamp
+
+    checked = 0
+    for info in pkgutil.walk_packages(warp_lamp.__path__, "warp_lamp."):
+        if ".kernels" in info.name or info.name.endswith("__main__"):
+            continue  # Warp kernels and functions: no Python call signatures; __main__ runs the command line
+        try:
+            module = importlib.import_module(info.name)
+        except ImportError:  # an optional extra that is not installed
+            continue
+        for obj in vars(module).values():
+            if getattr(obj, "__module__", None) != info.name:
+                continue
+            functions = [obj] if inspect.isfunction(obj) else []
+            if inspect.isclass(obj):
+                functions = [getattr(f, "__func__", f) for f in vars(obj).values()]
+                functions = [f for f in functions if inspect.isfunction(f)]
+            for f in functions:
+                kinds = [p.kind for p in inspect.signature(f).parameters.values()]
+                assert inspect.Parameter.POSITIONAL_ONLY not in kinds, f"{info.name}.{f.__qualname__}"
+                checked += 1
+    assert checked > 300

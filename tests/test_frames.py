@@ -138,22 +138,25 @@ def test_frame_averaging_is_deterministic_balanced_and_reduces_direction_error(d
     """frames=K: the orientations are fixed (the same K frames every call, nested), the averaged float64 forces
     balance exactly, and on the SphereTest specimen the mean angle between the outer particles' forces and the
     inward radial direction falls from 1 frame to 8 by more than a third (measured 15.5 to 7.5 degrees at 4 cells
-    per diameter); ShiningLamp(frames=K) adds lamp_forces(frames=K) to float32 rounding."""
+    per diameter) while the summed load stays that of one frame; ShiningLamp(frames=K) adds lamp_forces(frames=K) to
+    float32 rounding."""
     r4 = lamp_frame_rotations(4)
     np.testing.assert_array_equal(lamp_frame_rotations(8)[:4], r4)
     np.testing.assert_array_equal(r4[0], np.eye(3))
     s = scene_sphere_specimen()
     c, r = s.centers, s.radii
     outer = np.linalg.norm(c, axis=1) > s.radius - 3 * r.mean()
-    angles = {}
+    angles, load = {}, {}
     for k in (1, 8):
         f = wl.lamp_forces(c, r, P, frames=k, cells_per_diameter=4, device=device)
         np.testing.assert_array_equal(f.sum(axis=0), [0.0, 0.0, 0.0])
+        load[k] = np.linalg.norm(f, axis=1).sum()
         lit = (np.linalg.norm(f, axis=1) > 0) & outer
         radial = -c[lit] / np.linalg.norm(c[lit], axis=1)[:, None]
         cosine = np.sum(f[lit] * radial, axis=1) / np.linalg.norm(f[lit], axis=1)
         angles[k] = np.degrees(np.arccos(np.clip(cosine, -1, 1))).mean()
     assert angles[8] < 0.67 * angles[1], angles
+    assert abs(load[8] / load[1] - 1.0) < 0.05, load  # an average of K frames, each weighted 1/K: the same load
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=2)
     lamp = wl.ShiningLamp(grid, frames=3, device=device)
     pos, rad = device_arrays(c, r, device)

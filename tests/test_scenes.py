@@ -113,6 +113,7 @@ def test_cylinder_and_box_specimens_pack_inside_their_containers():
     assert np.all(np.abs(c[:, 2]) + r <= 0.015 + 0.0101 * r)
     assert _worst_overlap(c, r) < 0.0101
     assert np.ptp(c[:, 2]) > 0.03 - 4.0 * r.max()  # filled end to end, not squeezed to one face
+    assert abs(1.0 - np.sum(4.0 / 3.0 * r**3) / (0.015**2 * 0.03) - 0.46) < 1e-9  # the porosity asked for
 
     box = scene_box_specimen((0.02, 0.02, 0.03), 0.004, cache=False)
     c, r = box.centers, box.radii
