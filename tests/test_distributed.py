@@ -90,6 +90,8 @@ def test_mpi_processes(tmp_path):
     distributed_cases.lamp_cases(LocalCollective("cpu"), quick=True)
     out = tmp_path / "ranks.json"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    # Containers often run as root, which OpenMPI's mpiexec refuses unless told (MPICH ignores these).
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     cmd = [mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "distributed_ranks.py"), "--json", str(out)]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -475,7 +477,7 @@ def test_ranks_refuse_together():
     assert all("some id is on two ranks" in m for m in run_ranks(colls, shared_id))
 
 
-def test_torch_gloo_one_rank():
+def test_torch_gloo_one_rank(tmp_path):
     """torch.distributed (Gloo, one rank) as the collective: its int64 path with the key flip, on every mode and
     porosity method (where torch is installed)."""
     torch_dist = pytest.importorskip("torch.distributed")
@@ -485,7 +487,8 @@ def test_torch_gloo_one_rank():
 
     owned = not torch_dist.is_initialized()
     if owned:
-        torch_dist.init_process_group("gloo", init_method="tcp://127.0.0.1:29533", rank=0, world_size=1)
+        # A file store, not a TCP port: two test runs on one machine (CI jobs, parallel workers) must not collide.
+        torch_dist.init_process_group("gloo", init_method=(tmp_path / "store").as_uri(), rank=0, world_size=1)
     try:
         results = distributed_cases.all_cases(TorchCollective(None, "cpu"), quick=True)
         assert not _failures(results)

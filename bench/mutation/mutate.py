@@ -27,14 +27,17 @@ from __future__ import annotations
 import argparse
 import ast
 import collections
+import gzip
 import hashlib
 import json
 import os
+import queue
 import shutil
 import signal
 import sqlite3
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -304,7 +307,12 @@ def _resample(run: Path, rate: float) -> int:
     keys = json.loads((run / "keys.json").read_text())
     with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
         results = dict(db.results)
-        skipped = {j for j, r in results.items() if r.worker_outcome == WorkerOutcome.SKIPPED}
+        # Only the sample's own skips move: another part's mutants and exported ones stay where they are.
+        skipped = {
+            j
+            for j, r in results.items()
+            if r.worker_outcome == WorkerOutcome.SKIPPED and r.output == "not in the sample"
+        }
     _forget(run / "session.sqlite", [j for j in skipped if keys.get(j, 1.0) < rate])
     with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
         sleep = [item.job_id for item in db.pending_work_items if keys.get(item.job_id, 1.0) >= rate]
@@ -436,9 +444,13 @@ def cmd_test_mutant(args) -> None:
     run = Path(args.run)
     meta = json.loads((run / "meta.json").read_text())
     code = Path.cwd()
-    changed = subprocess.run(
-        ["git", "diff", "--name-only", "--", "warp_lamp", "examples"], capture_output=True, text=True, check=True
-    ).stdout.split()
+    # ``remote`` names the mutated module (its trees are plain copies, not git work trees).
+    changed = (
+        os.environ.get("MUTATE_CHANGED", "").split()
+        or subprocess.run(
+            ["git", "diff", "--name-only", "--", "warp_lamp", "examples"], capture_output=True, text=True, check=True
+        ).stdout.split()
+    )
     suite = _suite_files(code)
     files = _map_files(changed[0], meta["map"], code) if len(changed) == 1 else None
     plan = [("map", files), ("rest", [f for f in suite if f not in files])] if files else [("suite", suite)]
@@ -452,7 +464,12 @@ def cmd_test_mutant(args) -> None:
         if base is None:  # the rest of a suite whose baseline was not run: bound it by the whole suite's
             base = meta["baseline_s"].get("suite", 600.0)
         limit = _TIMEOUT_FACTOR * base + _COMPILE_S
-        verdict, seconds, out = _stage(stage_files, limit)
+        # ``remote``'s hard end: a stage cut there is no verdict (exit 3), and the mutant goes back to the queue.
+        end = float(os.environ.get("MUTATE_HARD_END", "inf"))
+        verdict, seconds, out = _stage(stage_files, min(limit, end - time.time()))
+        if verdict == "timeout" and time.time() >= end - 1:
+            print("mutate.py: cut at remote's hard end")
+            sys.exit(3)
         spent.append(f"{stage} {seconds:.0f} s")
         if verdict != "passed":
             failed = [x for x in out.splitlines() if x.startswith(("FAILED ", "ERROR "))]
@@ -620,6 +637,161 @@ def cmd_merge(args) -> None:
     print(json.dumps(summary, indent=1))
 
 
+def cmd_export(args) -> None:
+    """Write the pending mutants of a ``--map`` session as mutated module texts for ``remote`` on a machine with more
+    cores, and mark them skipped here ("exported"), so that this machine's run goes on with the rest (the modules
+    in ``--keep``: those whose tests need extras the other machine lacks). ``import`` brings the verdicts back."""
+    import cosmic_ray.plugins
+    from cosmic_ray.mutating import mutate_code
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome, WorkResult
+
+    run = WORK / args.name
+    meta = json.loads((run / "meta.json").read_text())
+    if "baseline_s" not in meta:
+        sys.exit(f"export: {args.name} has no baselines yet (its run has not reached exec)")
+    sources: dict[str, str] = {}
+    jobs = []
+    with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
+        for item in db.pending_work_items:
+            m = item.mutations[0]
+            module = str(m.module_path)
+            if any(module.startswith(k) for k in args.keep):
+                continue
+            if module not in sources:
+                sources[module] = subprocess.run(
+                    ["git", "show", f"{meta['code']}:{module}"], cwd=ROOT, capture_output=True, text=True, check=True
+                ).stdout
+            operator = cosmic_ray.plugins.get_operator(m.operator_name)(**(getattr(m, "operator_args", None) or {}))
+            text = mutate_code(sources[module], operator, m.occurrence)
+            if text is not None:
+                jobs.append({"job": item.job_id, "module": module, "text": text})
+        db.set_multiple_results(
+            [j["job"] for j in jobs], WorkResult(output="exported", worker_outcome=WorkerOutcome.SKIPPED)
+        )
+    out = Path(args.out)
+    with gzip.open(out, "wt") as f:
+        json.dump({"name": args.name, "meta": meta, "sources": sources, "jobs": jobs}, f)
+    print(f"export: {len(jobs)} mutants of {args.name} to {out}")
+
+
+def cmd_remote(args) -> None:
+    """Run exported mutants on this machine, ``--workers`` at a time, each in its own copy of the tree (CPU only, as
+    on the recipe's machine), through the same ``test-mutant`` stages and limits; each verdict is appended to
+    ``--out`` as it comes (JSON lines), and no mutant starts after ``--deadline`` seconds."""
+    data = json.load(gzip.open(args.jobs, "rt"))
+    work = Path(args.work)
+    rundir = work / "run"
+    rundir.mkdir(parents=True, exist_ok=True)
+    (rundir / "meta.json").write_text(json.dumps(data["meta"]))
+    shutil.copy(Path(__file__), rundir / "mutate.py")
+    skip = shutil.ignore_patterns(
+        ".git", ".w*", ".mut", ".before", ".scenes", "__pycache__", ".hypothesis", "*.egg-info"
+    )
+    scenes = ROOT / ".scenes"
+    t0 = time.time()
+    jobs: queue.Queue = queue.Queue()
+    if args.baseline:
+        # The unmutated code on each distinct set of mapped files first: a set that fails here would kill mutants
+        # for this machine's sake, not theirs.
+        sets = {}
+        for j in data["jobs"]:
+            files = _map_files(j["module"], data["meta"]["map"], ROOT)
+            sets.setdefault(tuple(files or ()), j["module"])
+        for module in sets.values():
+            jobs.put({"job": f"baseline:{module}", "module": module, "text": data["sources"][module]})
+    for j in data["jobs"]:
+        jobs.put(j)
+    lock = threading.Lock()
+    out = Path(args.out)
+
+    def worker(i: int) -> None:
+        tree = work / f"tree{i}"
+        if not tree.exists():
+            shutil.copytree(ROOT, tree, ignore=skip)
+            if scenes.exists():
+                shutil.copytree(scenes, work / f"scenes{i}")
+        env = dict(os.environ)
+        env.update(
+            PYTHONPATH=f"{tree}:{env.get('PYTHONPATH', '')}",
+            WARP_CACHE_PATH=str(work / "warpcache"),
+            WARP_LAMP_CACHE=str(work / f"scenes{i}"),
+            PYTHONDONTWRITEBYTECODE="1",
+            CUDA_VISIBLE_DEVICES="",
+            # Lent machines run as root, which OpenMPI's mpiexec refuses unless told (MPICH does not ask).
+            OMPI_ALLOW_RUN_AS_ROOT="1",
+            OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+        )
+        while time.time() - t0 < args.deadline:
+            try:
+                j = jobs.get_nowait()
+            except queue.Empty:
+                return
+            path = tree / j["module"]
+            path.write_text(j["text"])
+            s0 = time.perf_counter()
+            proc = subprocess.run(
+                [sys.executable, str(rundir / "mutate.py"), "test-mutant", str(rundir)],
+                cwd=tree,
+                env={**env, "MUTATE_CHANGED": j["module"], "MUTATE_HARD_END": str(t0 + args.hard_end)},
+                capture_output=True,
+                text=True,
+                check=False,
+            )
+            path.write_text(data["sources"][j["module"]])
+            if proc.returncode == 3:
+                continue
+            row = {"job": j["job"], "rc": proc.returncode, "seconds": round(time.perf_counter() - s0, 1)}
+            row["output"] = "\n".join((proc.stdout + proc.stderr).splitlines()[-45:])
+            with lock, out.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(args.workers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    print(f"remote: {sum(1 for _ in out.open())} verdicts in {time.time() - t0:.0f} s; {jobs.qsize()} not started")
+
+
+def cmd_import(args) -> None:
+    """Record ``remote``'s verdicts in the session (exit status 0: survived), and make the exported mutants without
+    one pending again."""
+    import difflib
+
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
+
+    run = WORK / args.name
+    data = json.load(gzip.open(args.jobs, "rt"))
+    rows = {}
+    for path in args.results:
+        for line in Path(path).read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                rows[r["job"]] = r
+    with use_db(str(run / "session.sqlite"), WorkDB.Mode.open) as db:
+        for j in data["jobs"]:
+            r = rows.get(j["job"])
+            if r is None:
+                continue
+            diff = difflib.unified_diff(
+                data["sources"][j["module"]].splitlines(), j["text"].splitlines(), j["module"], j["module"], lineterm=""
+            )
+            db.set_multiple_results(
+                [j["job"]],
+                WorkResult(
+                    worker_outcome=WorkerOutcome.NORMAL,
+                    output=r["output"],
+                    test_outcome=TestOutcome.SURVIVED if r["rc"] == 0 else TestOutcome.KILLED,
+                    diff="\n".join(diff),
+                ),
+            )
+    missing = [j["job"] for j in data["jobs"] if j["job"] not in rows]
+    _forget(run / "session.sqlite", missing)
+    print(f"import: {len(data['jobs']) - len(missing)} verdicts into {args.name}; {len(missing)} pending again")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -653,14 +825,37 @@ def main(argv=None) -> None:
     merge = sub.add_parser("merge", help="join the results of a sample's parts (run --part K/N) into results/NAME.json")
     merge.add_argument("name")
     merge.add_argument("parts", nargs="+", help="the parts' result names")
+    export = sub.add_parser("export", help="the pending mutants of a session, for remote on another machine")
+    export.add_argument("name")
+    export.add_argument("out", help="a .json.gz to write")
+    export.add_argument("--keep", nargs="*", default=[], help="module prefixes left to this machine's run")
+    remote = sub.add_parser("remote", help="run exported mutants here, several at a time")
+    remote.add_argument("jobs")
+    remote.add_argument("--out", required=True, help="JSON lines of verdicts, appended")
+    remote.add_argument("--work", default="/tmp/mutation_remote")
+    remote.add_argument("--baseline", action="store_true", help="first run each mapped set on the unmutated code")
+    remote.add_argument("--workers", type=int, default=max(1, (os.cpu_count() or 2) - 2))
+    remote.add_argument("--deadline", type=float, default=420.0, help="seconds after which no mutant starts")
+    remote.add_argument("--hard-end", type=float, default=540.0, help="seconds after which a running mutant is cut")
+    imp = sub.add_parser("import", help="record remote's verdicts in the session")
+    imp.add_argument("name")
+    imp.add_argument("jobs")
+    imp.add_argument("results", nargs="+")
     test = sub.add_parser("test-mutant", help="(cosmic-ray's per-mutant command in a --map session)")
     test.add_argument("run")
     args = parser.parse_args(argv)
     if getattr(args, "confirm", False) and not args.map:
         parser.error("--confirm needs --map")
-    {"run": cmd_run, "rerun": cmd_rerun, "report": cmd_report, "merge": cmd_merge, "test-mutant": cmd_test_mutant}[
-        args.command
-    ](args)
+    {
+        "run": cmd_run,
+        "rerun": cmd_rerun,
+        "report": cmd_report,
+        "merge": cmd_merge,
+        "export": cmd_export,
+        "remote": cmd_remote,
+        "import": cmd_import,
+        "test-mutant": cmd_test_mutant,
+    }[args.command](args)
 
 
 if __name__ == "__main__":
