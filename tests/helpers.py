@@ -18,6 +18,15 @@ DEVICES = ["cpu", *CUDA_DEVICES]
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
+def worst_overlap(centers, radii) -> float:
+    """The largest overlap of any two particles over the smaller radius (negative: none touch), all pairs, float64."""
+    c, r = np.asarray(centers, dtype=np.float64), np.asarray(radii, dtype=np.float64)
+    d = np.linalg.norm(c[:, None] - c[None], axis=2)
+    overlap = (r[:, None] + r[None] - d) / np.minimum(r[:, None], r[None])
+    np.fill_diagonal(overlap, -np.inf)
+    return float(overlap.max())
+
+
 def load_example(name: str):
     """examples/<name>.py as a module, loaded once and kept in ``sys.modules`` under its name (as the examples
     load their sibling ``dem``)."""

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from helpers import worst_overlap
 
 from warp_lamp.scenes import (
     relax_packing,
@@ -76,10 +77,7 @@ def test_small_specimens_pack(diameter):
     s = scene_sphere_specimen(diameter=diameter, cache=False)
     R = diameter / 2.0
     assert np.all(np.linalg.norm(s.centers, axis=1) + s.radii <= R + 0.0101 * s.radii)  # the wall, like a contact
-    d = np.linalg.norm(s.centers[:, None] - s.centers[None], axis=2)
-    overlap = (s.radii[:, None] + s.radii[None] - d) / np.minimum(s.radii[:, None], s.radii[None])
-    np.fill_diagonal(overlap, -1.0)
-    assert overlap.max() < 0.0101
+    assert worst_overlap(s.centers, s.radii) < 0.0101
     porosity = 1.0 - np.sum(s.radii**3) / R**3
     assert 0.39 < porosity < 0.5
 
@@ -95,13 +93,6 @@ def test_unreachable_porosity_and_tiny_bodies_are_refused_at_once():
     assert time.perf_counter() - t0 < 1.0
 
 
-def _worst_overlap(c, r):
-    d = np.linalg.norm(c[:, None] - c[None], axis=2)
-    overlap = (r[:, None] + r[None] - d) / np.minimum(r[:, None], r[None])
-    np.fill_diagonal(overlap, -1.0)
-    return overlap.max()
-
-
 def test_cylinder_and_box_specimens_pack_inside_their_containers():
     """Fresh packings (no cache, which would hand back whatever an earlier version of the relaxation left) of the
     triaxial cylinder and the cutting slab: every particle inside its container (the wall allowed 1% of a radius,
@@ -111,7 +102,7 @@ def test_cylinder_and_box_specimens_pack_inside_their_containers():
     c, r = cyl.centers, cyl.radii
     assert np.all(np.hypot(c[:, 0], c[:, 1]) + r <= 0.015 + 0.0101 * r)
     assert np.all(np.abs(c[:, 2]) + r <= 0.015 + 0.0101 * r)
-    assert _worst_overlap(c, r) < 0.0101
+    assert worst_overlap(c, r) < 0.0101
     assert np.ptp(c[:, 2]) > 0.03 - 4.0 * r.max()  # filled end to end, not squeezed to one face
     assert abs(1.0 - np.sum(4.0 / 3.0 * r**3) / (0.015**2 * 0.03) - 0.46) < 1e-9  # the porosity asked for
 
@@ -120,7 +111,7 @@ def test_cylinder_and_box_specimens_pack_inside_their_containers():
     assert np.all(
         (c - r[:, None] >= -0.0101 * r[:, None]) & (c + r[:, None] <= [0.02, 0.02, 0.03] + 0.0101 * r[:, None])
     )
-    assert _worst_overlap(c, r) < 0.0101
+    assert worst_overlap(c, r) < 0.0101
     assert abs(2.0 * r.mean() / 0.004 - 1.0) < 0.05
     assert box.name == f"box specimen 20 x 20 x 30 mm, {len(r)} particles"
 
@@ -131,7 +122,7 @@ def test_overlapping_box_relaxes_to_its_overlap_inside_the_box():
     s = scene_overlapping_box(0.004, size=(0.03, 0.03, 0.03), solid_fraction=0.5, max_overlap=0.1, cache=False)
     c, r = s.centers, s.radii
     assert np.all((c - r[:, None] >= -0.101 * r[:, None]) & (c + r[:, None] <= 0.03 + 0.101 * r[:, None]))
-    assert 0.0 < _worst_overlap(c, r) <= 0.101
+    assert 0.0 < worst_overlap(c, r) <= 0.101
     assert abs(len(r) * 4.0 / 3.0 * np.pi * 0.004**3 / 0.03**3 - 0.5) < 0.01
 
 

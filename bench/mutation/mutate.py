@@ -223,6 +223,12 @@ def _drawing_lines(path: Path) -> set[int]:
     return lines
 
 
+def _position(item) -> tuple:
+    """A work item's place in the source: (file, start, occurrence), the order the sample and its parts use."""
+    m = item.mutations[0]
+    return str(m.module_path), m.start_pos, m.occurrence
+
+
 def _sample_keys(session: Path, code: Path, drawing: bool = False) -> tuple[dict[str, float], int]:
     """Each mutant's place in [0, 1) (job id -> hash fraction) for the operator set's mutants: a hash of (file,
     operator, stripped source line, how many such mutants of that line came before it). With ``drawing``, the
@@ -236,10 +242,7 @@ def _sample_keys(session: Path, code: Path, drawing: bool = False) -> tuple[dict
     keys = {}
     dropped = 0
     with use_db(str(session), WorkDB.Mode.open) as db:
-        items = sorted(
-            db.work_items,
-            key=lambda w: (str(w.mutations[0].module_path), w.mutations[0].start_pos, w.mutations[0].occurrence),
-        )
+        items = sorted(db.work_items, key=_position)
         for item in items:
             m = item.mutations[0]
             path = code / m.module_path
@@ -281,10 +284,7 @@ def _part(session: Path, part: str) -> int:
 
     k, n = (int(x) for x in part.split("/"))
     with use_db(str(session), WorkDB.Mode.open) as db:
-        pending = sorted(
-            db.pending_work_items,
-            key=lambda w: (str(w.mutations[0].module_path), w.mutations[0].start_pos, w.mutations[0].occurrence),
-        )
+        pending = sorted(db.pending_work_items, key=_position)
         other = [w.job_id for i, w in enumerate(pending) if i % n != k]
         db.set_multiple_results(
             other, WorkResult(output=f"in another part than {part}", worker_outcome=WorkerOutcome.SKIPPED)
@@ -538,9 +538,30 @@ def _decided_by(output: str) -> tuple[str, str]:
     return head.split("killed by ")[1].split(" ")[0], test.removeprefix("FAILED ").removeprefix("ERROR ")
 
 
+def _tally(rows: list[dict], *, staged: bool) -> dict:
+    """The score of result rows (``report``'s, or several parts' joined): killed counts timeouts and incompetent
+    mutants; with ``staged`` (a ``--map`` run), which stage decided them."""
+    done = [r for r in rows if r["outcome"] != "pending"]
+    killed = [r for r in done if r["outcome"] in ("killed", "timeout", "incompetent")]
+    out = {
+        "sampled": len(rows),
+        "done": len(done),
+        "killed": len(killed),
+        "timeouts": sum(r["outcome"] == "timeout" for r in done),
+        "survived": len(done) - len(killed),
+        "score": len(killed) / len(done) if done else None,
+    }
+    if staged:
+        stages = collections.Counter(r.get("stage", "earlier run") for r in done)
+        out["decided_by"] = dict(sorted(stages.items()))
+        # A survivor of its mapped files alone may still fail the rest: the score is then a lower bound.
+        out["score_is"] = "exact" if not stages.get("map only") else "a lower bound (survivors not confirmed)"
+    return out
+
+
 def cmd_report(args) -> None:
     from cosmic_ray.work_db import WorkDB, use_db
-    from cosmic_ray.work_item import TestOutcome, WorkerOutcome
+    from cosmic_ray.work_item import WorkerOutcome
 
     run = WORK / args.name
     meta = json.loads((run / "meta.json").read_text())
@@ -579,24 +600,12 @@ def cmd_report(args) -> None:
                 row.update(stage=stage, killed_by=test)
             rows.append(row)
     rows.sort(key=lambda r: (r["module"], r["line"], r["operator"]))
-    done = [r for r in rows if r["outcome"] not in ("pending",)]
-    killed = [r for r in done if r["outcome"] in (TestOutcome.KILLED.value, "timeout", TestOutcome.INCOMPETENT.value)]
     summary = {
         **{k: v for k, v in meta.items() if k != "map"},
         "map": "map" in meta,
         "sample": f"key < {below if below is not None else meta['rate']}",
-        "sampled": len(rows),
-        "done": len(done),
-        "killed": len(killed),
-        "timeouts": sum(r["outcome"] == "timeout" for r in done),
-        "survived": len(done) - len(killed),
-        "score": len(killed) / len(done) if done else None,
+        **_tally(rows, staged="map" in meta),
     }
-    if "map" in meta:
-        stages = collections.Counter(r.get("stage", "earlier run") for r in done)
-        summary["decided_by"] = dict(sorted(stages.items()))
-        # A survivor of its mapped files alone may still fail the rest: the score is then a lower bound.
-        summary["score_is"] = "exact" if not stages.get("map only") else "a lower bound (survivors not confirmed)"
     RESULTS.mkdir(parents=True, exist_ok=True)
     name = args.name if below is None else f"{args.name}-below-{below}"
     (RESULTS / f"{name}.json").write_text(json.dumps({"summary": summary, "mutants": rows}, indent=1) + "\n")
@@ -616,22 +625,12 @@ def cmd_merge(args) -> None:
     if any(h != heads[0] for h in heads):
         sys.exit(f"merge: the parts differ in {heads}")
     rows = sorted((r for p in parts for r in p["mutants"]), key=lambda r: (r["module"], r["line"], r["operator"]))
-    done = [r for r in rows if r["outcome"] != "pending"]
-    killed = [r for r in done if r["outcome"] in ("killed", "timeout", "incompetent")]
-    stages = collections.Counter(r.get("stage", "earlier run") for r in done)
     summary = {
         **heads[0],
         "parts": args.parts,
         "baseline_s": [p["summary"].get("baseline_s") for p in parts],
         "sample": f"key < {heads[0]['rate']}",
-        "sampled": len(rows),
-        "done": len(done),
-        "killed": len(killed),
-        "timeouts": sum(r["outcome"] == "timeout" for r in done),
-        "survived": len(done) - len(killed),
-        "score": len(killed) / len(done) if done else None,
-        "decided_by": dict(sorted(stages.items())),
-        "score_is": "exact" if not stages.get("map only") else "a lower bound (survivors not confirmed)",
+        **_tally(rows, staged=True),
     }
     (RESULTS / f"{args.name}.json").write_text(json.dumps({"summary": summary, "mutants": rows}, indent=1) + "\n")
     print(json.dumps(summary, indent=1))
