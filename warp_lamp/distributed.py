@@ -25,6 +25,19 @@ details make that hold:
   to this rank exactly when the reduced key equals the rank's own key with its global id: no map from global ids
   back to local indices is needed (no array of N_global entries, no search).
 
+**The reach** (criteria 0 and 1 without walls or ``follow``; ``reach="auto"``, the default): a rank's particles
+light only some cells, so each rank seeds, converts and scatters only a rectangle of cells per grid (its particles'
+footprint box, widened by ``reach_margin`` cells), and all-reduces only the cells that two or more ranks'
+rectangles hold: a cell that one rank alone can reach has that rank's key as its reduced key. A rank of an x-slab
+still reduces the whole x grid (every slab lights it) but only the strips of the y and z grids it shares with its
+neighbours. The rectangles are agreed (an all-gather of 12 integers per rank) by the first update after
+:meth:`DistributedLamp.set_ids` and by :meth:`DistributedLamp.agree_reach`, both outside any capture: a captured
+update replays fixed-size kernels and one fixed-size all-reduce, never a host synchronisation. Each update counts,
+on the device, the particles whose footprint left their rank's rectangle (moved more than the margin, or the
+frame's pose changed); :meth:`DistributedLamp.reach_escapes` reads the count, and after any escape the forces are
+not guaranteed until the reach is agreed again. Where every rank reaches everything (a random split), every cell is
+shared and the result is the whole-grid reduction's.
+
 The distributed lamp is the lamp's pipeline (:mod:`warp_lamp.pipeline`) with two stages swapped for distributed
 variants, not a second lamp: :class:`AgreedFrame` reduces the following grid's box over the ranks, and the
 estimators :class:`DistributedFirstHit` and :class:`DistributedAreaSplit` run the one-device seed and depth pass,
@@ -976,9 +989,11 @@ class DistributedLamp(ShiningLamp):
     the particles; :meth:`update` then allocates nothing, reads nothing back and does not synchronise, so with a
     capturable collective (:class:`NCCLCollective`) it can be recorded in a CUDA graph.
 
-    Per update each rank hands the library one all-reduce MIN of ``2 x 8`` bytes per cell (criteria 0 and 1: the
-    whole key array) or ``D`` rounds of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of
-    the whole body (``"area"``), plus 24 bytes with ``follow``: :attr:`reduction_bytes`.
+    Per update each rank hands the library one all-reduce MIN of ``2 x 8`` bytes per cell that two or more ranks
+    reach (criteria 0 and 1 with the reach; every cell with walls, ``follow`` or ``reach="all"``), or ``D`` rounds
+    of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of the whole body (``"area"``),
+    plus 24 bytes with ``follow``: :attr:`reduction_bytes`. With the reach, the first update after :meth:`set_ids`
+    agrees it (a synchronisation): run one update before capturing.
     """
 
     def __new__(cls, *args, **kwargs):
