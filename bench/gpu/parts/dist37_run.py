@@ -145,8 +145,11 @@ def slab_rows(n_per_copy: int, copies: int, k: int, rank: int, centers) -> np.nd
     return distributed_cases.split_rows("spatial", centers, rank, k).astype(np.int64)
 
 
-def _free(device) -> int:
-    return int(device.free_memory) if device.is_cuda else 0
+def _used(device) -> int:
+    """Bytes in use in Warp's memory pool on a GPU (0 on the CPU)."""
+    import warp as wp
+
+    return int(wp.get_mempool_used_mem_current(device)) if device.is_cuda and wp.is_mempool_enabled(device) else 0
 
 
 def _time(fn, device, repeats):
@@ -195,7 +198,7 @@ def distributed_run(coll, centers, radii, grid, rows, want, repeats, *, criterio
     from warp_lamp.distributed import DistributedLamp
 
     device = coll.device
-    free0 = _free(device)
+    used0 = _used(device)
     frame = (centers[rows] - grid.origin).astype(np.float32)
     pos = wp.array(frame, dtype=wp.vec3, device=device)
     rad = wp.array(radii[rows].astype(np.float32), dtype=wp.float32, device=device)
@@ -242,7 +245,10 @@ def distributed_run(coll, centers, radii, grid, rows, want, repeats, *, criterio
         wp.capture_launch(g)
         replayed = lamp.counts_numpy()
         update()
-    out["memory_bytes"] = free0 - _free(device) if device.is_cuda else None
+    # The rank's particles, its lamp and their buffers (the reference's arrays are freed by now).
+    out["memory_bytes"] = _used(device) - used0 if device.is_cuda else None
+    if device.is_cuda:
+        out["mempool_high_bytes"] = int(wp.get_mempool_used_mem_high(device))
     out["lamp_bytes"] = int(lamp.nbytes)
     mine = want[rows]
     out["bitwise"] = bool(np.array_equal(counts, mine))
