@@ -27,7 +27,6 @@ echo "warm-up (compile): $(( $(date +%s) - t0 )) s, exit $rc"
 timeout "${DIST37_TIMEOUT:-300}" $RUN --nproc_per_node="$G" $PART --out "$OUT/dist37.json" ${DIST37_ARGS:-} 2>&1
 rc=$?
 echo "run: exit $rc after $(( $(date +%s) - t0 )) s"
-tail -5 "$LOG" | grep -i "error\|traceback" && tail -30 "$LOG"
 # The table (the run prints it last; printed again from the JSON in case the run was cut short).
 python3 - "$OUT/dist37.json" <<'PY' 2>&1
 import json, sys
