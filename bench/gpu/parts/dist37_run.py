@@ -481,6 +481,32 @@ def print_table(report: dict) -> None:
             f"{ms(e['depth_s'])} | {ms(e['to_global_s'])} | {ms(e['reduce_s'])} | {ms(e['scatter_s'])} | "
             f"{'-' if not mem else f'{mem / 2**30:.2f}'} |"
         )
+    # The README's rows ("Past one GPU", scaling with the reach).
+    lines += ["", "README rows:"]
+
+    def n_str(n):
+        return f"{n / 1e6:.0f}M" if n >= 1e6 else f"{n:,}"
+
+    if one:
+        t1 = ms(one.get("replay_s") or one["eager_s"])
+        lines.append(f"| strong, `ShiningLamp` | 1 | {n_str(one['n'])} | {t1} | 1 | - | - | |")
+    for e in report["runs"]:
+        if e["kind"] == "porosity":
+            lines.append(
+                f"| porosity {e['method']} | {e['gpus']} | {n_str(e['n'])} | {ms(e['seconds'])} (1 GPU "
+                f"{ms(e['one_gpu_s'])}) | {e['seconds'] / e['one_gpu_s']:.3f} | {'yes' if e['bitwise'] else 'NO'} | | |"
+            )
+            continue
+        name = {"strong": "strong, x-slabs", "weak": "weak, 27M per GPU", "area": "area criterion, x-slabs"}[e["kind"]]
+        if e["kind"] == "weak":
+            name = f"weak, {n_str(e['n'] // e['gpus'])} per GPU"
+        ratio = e.get("ratio_to_one_gpu", e.get("efficiency"))
+        mem = e.get("memory_bytes")
+        lines.append(
+            f"| {name} | {e['gpus']} | {n_str(e['n'])} | {ms(e['replay_s'] or e['eager_s'])} | **{ratio:.3f}** | "
+            f"{'yes' if e['bitwise'] and not e['escapes'] else 'NO'} | {e['reduction_bytes'] / 1e6:.1f} | "
+            f"{'-' if not mem else f'{mem / 2**30:.2f}'} |"
+        )
     print("\n".join(lines), flush=True)
 
 
