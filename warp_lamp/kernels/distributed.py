@@ -513,6 +513,8 @@ def dist_scatter_window(
     wc = window_cell(grid, win, t)
     a = wc[0]
     c = wc[1]
+    if keys[2 * c] == EMPTY_KEY and keys[2 * c + 1] == EMPTY_KEY:
+        return  # unlit by this rank: no slot to read
     slot = slot_of[c]
     for side in range(2):
         mine = keys[2 * c + side]
