@@ -26,7 +26,7 @@ def block_on_platen(rng, n=6):
 def test_a_wall_under_the_whole_body_equals_the_lamps_without_minus_z(device, rng, criterion):
     """The memo's mode: a platen under the whole body gives bitwise the forces of the five lamps without -z."""
     c, r = block_on_platen(rng)
-    platen = [((0.0, 0.0, -0.25), (0.0, 0.0, 1.0))]
+    platen = [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))]  # the body rests on it
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
     with_wall = wl.lamp_forces(c, r, P, grid=grid, criterion=criterion, walls=platen, device=device)
     five = wl.lamp_forces(c, r, P, grid=grid, criterion=criterion, lamps=["-x", "+x", "-y", "+y", "+z"], device=device)
@@ -41,7 +41,7 @@ def test_the_platen_takes_what_the_top_lamp_does_not_give_the_body(device, rng):
     """Balance in integer counts: x and y sum to zero; on z, body plus platen take the whole top window."""
     c, r = block_on_platen(rng)
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
-    lamp = lamp_update(c, r, grid=grid, walls=[((0.0, 0.0, -0.25), (0.0, 0.0, 1.0))], device=device)
+    lamp = lamp_update(c, r, grid=grid, walls=[((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))], device=device)
     d = lamp.diagnostics(c, P)
     counts, walls = d.counts, d.wall_counts
     assert counts[:, 0].sum() == 0 and counts[:, 1].sum() == 0
@@ -246,7 +246,7 @@ def test_wetted_walls_on_the_device_in_a_captured_graph(device, rng):
     c, r = block_on_platen(rng, n=4)
     rho = float(r.mean())
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4, probe_radius=rho)
-    platen = [((0.0, 0.0, -0.25), (0.0, 0.0, 1.0))]
+    platen = [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))]  # the body rests on it
     host = wl.lamp_forces(c, r, P, grid=grid, surfaces="all", probe_radius=rho, walls=platen, device=device)
     lamp = wl.ShiningLamp(grid, surfaces="all", probe_radius=rho, walls=platen, device=device)
     pos, rad = device_arrays(c, r, device)

@@ -8,6 +8,7 @@ runs the stages in order. :class:`FrameAveragedLamp` is a composite of K lamps i
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,8 @@ from warp_lamp.validate import (
     lamp_mask,
     lamp_names,
     resolve_device,
+    user_stacklevel,
+    walls_behind_message,
 )
 from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, check_probe_radius
 
@@ -781,6 +784,12 @@ def _enclosing(c: np.ndarray, r: np.ndarray, cells_per_diameter, rotation, probe
 def _host_update(c, r, mask, grid: LampGrid, options: LampOptions, device, *, weight: float = 1.0) -> ShiningLamp:
     """One update on checked host data: positions moved into the grid's frame in float64, then cast."""
     n = c.shape[0]
+    if options.walls is not None:
+        visible = c if mask is None else c[np.asarray(mask) != 0]
+        rv = r if mask is None else r[np.asarray(mask) != 0]
+        message = walls_behind_message(visible, rv, options.walls)
+        if message:
+            warnings.warn(message, stacklevel=user_stacklevel())
     lamp = ShiningLamp._build(grid, options, device)
     lamp._weight = weight
     pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
