@@ -859,7 +859,10 @@ def _lamp_options(args) -> dict:
         if dest in args.given or (dest in args.chosen):
             options[dest] = getattr(args, dest)
     if args.walls:
-        options["walls"] = [(w[:3], w[3:]) for w in args.walls]
+        # The wall's point is in the particles' units: the reader's factor to metres applies to it too (the
+        # distance between a body and a wall decides whether it rests there).
+        scale = getattr(getattr(args, "info", None), "scale", 1.0)
+        options["walls"] = [([x * scale for x in w[:3]], w[3:]) for w in args.walls]
     if args.surfaces == "all":
         options["surfaces"] = "all"
         options["probe_radius"] = args.probe_radius

@@ -360,11 +360,12 @@ class FirstHit(Estimator):
     def _walled_maps(self, owners: dict, depths: dict) -> dict:
         """Apply the walls to the owner and depth maps (in place), by the scatter's own decision; the walls' maps."""
         walled = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
+        recoils = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
         wp.launch(
             lamp_kernels.lamp_walled_owners,
             dim=self.grid.n_cells,
             inputs=[self._cells(), self._owner_keys(), self.frame.walls_view(self._input.in_frame), self.lamp_mask],
-            outputs=[walled],
+            outputs=[walled, recoils],
             device=self.device,
         )
         who = walled.numpy()

@@ -581,11 +581,15 @@ def lamp_walled_owners(
     lamp_mask: wp.int32,
     # outputs
     owners: wp.array[wp.int32],
+    recoils: wp.array[wp.int32],
 ):
-    """Diagnostics: the target of both lamps of every cell (``walled_loads``; two per cell, as the keys)."""
+    """Diagnostics: the target and the recoil wall of both lamps of every cell (``walled_loads``; two per cell, as
+    the keys)."""
     c = wp.tid()
     for side in range(2):
-        owners[2 * c + side] = walled_loads(grid, keys, walls, c, side, lamp_mask)[0]
+        who = walled_loads(grid, keys, walls, c, side, lamp_mask)
+        owners[2 * c + side] = who[0]
+        recoils[2 * c + side] = who[1]
 
 
 @wp.kernel
