@@ -436,3 +436,23 @@ def test_a_platen_moved_through_the_engine_lamp_is_honoured(device, rng):
         want = wl.lamp_forces(c, r, P, grid=engine.grid, walls=[((0.0, 0.0, z), (0.0, 0.0, 1.0))], device=device)
         np.testing.assert_array_equal(f, want)
         assert (f[:, 2].sum() < 0) == (z >= 0.0)  # lifted: wet underneath; resting or cut: sealed
+
+
+@pytest.mark.parametrize("lamps", ["all", ["-x", "+z"]])
+def test_a_resting_body_and_lamp_subsets_match_the_float64_reference(device, rng, lamps):
+    """A block resting on a platen with a tilted side wall, all lamps or a subset: owners, wall owners and counts
+    equal the float64 reference (which decides the rest from its own float64 gaps)."""
+    c, r = block_on_platen(rng, n=4)
+    walls = [((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), ((3.2, 0.0, 0.0), (-1.0, 0.2, 0.3))]
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=3)
+    lamp = lamp_update(c, r, grid=grid, lamps=lamps, walls=walls, device=device)
+    ref = lamp_reference(c, r, grid, lamps=lamps, walls=wl.validate.check_walls(walls))
+    d = lamp.diagnostics()
+    assert ref.wall_counts[0, 2] != 0
+    ambiguous = sum(int(a.sum()) for a in ref.ambiguous.values())
+    for name in wl.LAMPS:
+        ok = ~ref.ambiguous[name]
+        np.testing.assert_array_equal(d.owners[name][ok], ref.owners[name][ok])
+        np.testing.assert_array_equal(d.wall_owners[name][ok], ref.wall_owners[name][ok])
+    assert np.abs(d.counts - ref.counts).sum() <= ambiguous
+    assert np.abs(d.wall_counts - ref.wall_counts).sum() <= 2 * ambiguous
