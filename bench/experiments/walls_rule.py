@@ -82,12 +82,12 @@ def sphere_cases(device):
         (
             "wall through the centre, n = (1e200, 0, 1e200)",
             [((0, 0, 0), (1e200, 0, 1e200))],
-            [-(0.5**0.5), 0, -(0.5**0.5)],
+            diag,
         ),
         (
             "wall through the centre, n = (1e-200, 0, 1e-200)",
             [((0, 0, 0), (1e-200, 0, 1e-200))],
-            [-(0.5**0.5), 0, -(0.5**0.5)],
+            diag,
         ),
     ]
     out = []
