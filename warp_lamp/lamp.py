@@ -330,9 +330,11 @@ class ShiningLamp:
             max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
                 keys per corner and lamp); over it, ValueError before anything is allocated.
             walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], the normal
-                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). A
-                ray that starts inside a wall lights nothing; a ray stops where it enters a wall, and the wall
-                takes the reaction when no sphere comes first (:meth:`diagnostics` ``wall_forces``). On an axis
+                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). In
+                the memo's mode a ray's fluid lies on the fluid side of every wall; the fluid between a wall and
+                the body pushes both, except where the wall crosses the body's span on that ray or the body rests
+                on the wall (its nearest particle within ``validate.WALL_REST`` of its radius), which seals that
+                end (docs/guide/walls.md; the walls' forces: :meth:`diagnostics` ``wall_forces``). On an axis
                 no wall cuts, the forces still sum to zero; on one a wall cuts, the body's and the walls' forces
                 sum to P times the lamp window that faces the fluid. With ``surfaces="all"`` the probe keeps rho
                 from every wall and the fluid beyond the box lies on the fluid side of every wall: nothing on a
