@@ -330,8 +330,9 @@ def test_a_distant_wall_changes_no_force(device, rng):
     c, r = rng.uniform(0.0, 10.0, (300, 3)), rng.uniform(0.3, 0.8, 300)
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
     free = wl.lamp_forces(c, r, P, grid=grid, device=device)
-    walled = wl.lamp_forces(c, r, P, grid=grid, walls=[((0.0, 0.0, -1e6), (0.0, 0.0, 1.0))], device=device)
-    np.testing.assert_array_equal(walled, free)
+    lamp = lamp_update(c, r, grid=grid, walls=[((0.0, 0.0, -1e6), (0.0, 0.0, 1.0))], device=device)
+    np.testing.assert_array_equal(lamp.forces_numpy(P), free)
+    assert_walls_balance(lamp.diagnostics(c, P), grid, [0, 0, 1], P)
 
 
 def test_a_closed_vessel_leaves_the_body_as_without_walls(device):
@@ -392,16 +393,19 @@ def test_huge_and_tiny_normals_are_the_same_wall(device):
     for scale in (1e200, 1e-200):
         planes = wl.validate.check_walls([((0, 0, 0), (scale, 0.0, scale))])
         np.testing.assert_array_equal(planes, want)
-        g, _, _ = one_sphere([((0, 0, 0), (scale, 0.0, scale))], device, cells_per_diameter=8)
+        g, d, grid = one_sphere([((0, 0, 0), (scale, 0.0, scale))], device, cells_per_diameter=8)
         np.testing.assert_array_equal(g, f)
+        assert_walls_balance(d, grid, [1, 0, 1])
 
 
 def test_every_particle_behind_the_walls_warns(device):
     """A platen with its normal pointing out of the fluid leaves every particle behind it: a warning naming it."""
     c, r = ONE
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=8)
     with pytest.warns(UserWarning, match=r"every particle lies behind wall\(s\) \[0\]"):
-        f = wl.lamp_forces(c, r, P, walls=[((0.0, 0.0, -R), (0.0, 0.0, -1.0))], device=device)
-    np.testing.assert_array_equal(f, 0.0)
+        lamp = lamp_update(c, r, grid=grid, walls=[((0.0, 0.0, -R), (0.0, 0.0, -1.0))], device=device)
+    np.testing.assert_array_equal(lamp.forces_numpy(P), 0.0)
+    assert_walls_balance(lamp.diagnostics(c, 1.0), grid, [0, 0, -1])  # the fluid below pushes the wall up
 
 
 @pytest.mark.parametrize("lift", [0.0, -0.05, 0.5, 1.0, 2.0])
