@@ -1,4 +1,5 @@
-"""Walls that bound the fluid (issue 19, part 2): a ray stops at a wall, which takes the reaction."""
+"""Walls that bound the fluid: the fluid between a wall and the body pushes both, sealed where the wall crosses the
+body or the body rests on it (memo's mode); the probe kept off the walls (wetted mode)."""
 
 import numpy as np
 import pytest
@@ -460,3 +461,22 @@ def test_a_resting_body_and_lamp_subsets_match_the_float64_reference(device, rng
         np.testing.assert_array_equal(d.wall_owners[name][ok], ref.wall_owners[name][ok])
     assert np.abs(d.counts - ref.counts).sum() <= ambiguous
     assert np.abs(d.wall_counts - ref.wall_counts).sum() <= 2 * ambiguous
+
+
+def test_the_wetted_probe_leaves_a_dry_fillet_under_a_level_below_the_equator(device):
+    """Wetted mode, fluid level z = h through one sphere, probe rho = 0.06 R: below the equator the probe cannot
+    wet the wedge at the wall, and Fz is the section's -(R^2 - h^2) plus the lost upward push on the dry strip,
+    -2 a L |h| (a the contact radius, L = rho cot(alpha / 2), cos alpha = -h / R), to first order; above the
+    equator the fillet's crossings load the sphere and Fz is the section's."""
+    c, r = ONE
+    rho = 0.06 * R
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=32, probe_radius=rho)
+    for h in (-0.5 * R, 0.5 * R):
+        walls = [((0, 0, h), (0, 0, 1))]
+        lamp = lamp_update(c, r, grid=grid, surfaces="all", probe_radius=rho, walls=walls, device=device)
+        fz = lamp.forces_numpy(1.0)[0, 2] / np.pi
+        a, alpha = np.sqrt(R * R - h * h), np.arccos(-h / R)
+        section = -(R * R - h * h)
+        fillet = -2.0 * a * (rho / np.tan(alpha / 2.0)) * abs(h) if h < 0 else 0.0
+        assert fillet == 0.0 or fillet < -0.08  # the fillet's term is far outside the tolerance below
+        assert fz == pytest.approx(section + fillet, abs=0.015), h
