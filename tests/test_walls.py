@@ -480,3 +480,19 @@ def test_the_wetted_probe_leaves_a_dry_fillet_under_a_level_below_the_equator(de
         fillet = -2.0 * a * (rho / np.tan(alpha / 2.0)) * abs(h) if h < 0 else 0.0
         assert fillet == 0.0 or fillet < -0.08  # the fillet's term is far outside the tolerance below
         assert fz == pytest.approx(section + fillet, abs=0.015), h
+
+
+def test_a_platen_far_from_the_origin_keeps_the_float64_positions_precision(device, rng):
+    """A block resting on a platen 3,000 km up (float32 would move the plane by 0.24 radii, past the rest band):
+    on the float64 path the body rests as at the origin and takes the same z counts."""
+    c, r = block_on_platen(rng, n=4)
+    shift = np.array([0.0, 0.0, 3.0e6 + 0.37])
+    assert abs(float(np.float32(shift[2])) - shift[2]) > 0.2 * r.min()
+    counts = []
+    for offset in (np.zeros(3), shift):
+        grid = wl.LampGrid.enclosing(c + offset, r, cells_per_diameter=4)
+        lamp = lamp_update(c + offset, r, grid=grid, walls=[(offset, (0.0, 0.0, 1.0))], device=device)
+        d = lamp.diagnostics()
+        assert d.counts[:, 2].sum() == -int((d.owners["+z"] >= 0).sum())  # rests: sealed underneath
+        counts.append(d.counts)
+    np.testing.assert_array_equal(counts[1], counts[0])

@@ -100,11 +100,13 @@ class LampFrame:
         #: on the device (a simulator may overwrite them between replays, e.g. to move a platen).
         self.walls = wp.array(walls.astype(np.float32).reshape(-1, 4), dtype=wp.vec4, device=device)
         # In the frame: derived on the device at each update from :attr:`walls` (so that a simulator may move them),
-        # with the frame's pose for world positions, with the grid's own float64 origin for positions in the frame.
+        # with the frame's pose for world positions, with the grid's own float64 pose for positions in the frame
+        # (from the float64 planes while :attr:`walls` still holds them as given).
         self._walls_frame = wp.zeros(self.n_walls, dtype=wp.vec4, device=device)
         #: Per wall, the smallest gap (n . c - d - r) / r over the particles at the last update (float32).
         self.wall_gap = wp.zeros(self.n_walls, dtype=wp.float32, device=device)
-        self._grid_pose = (wp.vec3d(*grid.world_origin), wp.mat33(*grid.rotation.astype(np.float32).ravel()))
+        self._grid_pose = (wp.vec3d(*grid.world_origin), wp.mat33d(*grid.rotation.ravel()))
+        self._walls_given = wp.array(walls.reshape(-1, 4), dtype=wp.vec4d, device=device)
         self._walls = LampWalls()
         self._walls.frame = self._walls_frame
         self._walls.n = self.n_walls
@@ -141,7 +143,7 @@ class LampFrame:
         if not self.n_walls:
             return
         if in_frame:
-            kernel, inputs = lamp_kernels.walls_to_grid_frame, [*self._grid_pose, self.walls]
+            kernel, inputs = lamp_kernels.walls_to_grid_frame, [*self._grid_pose, self.walls, self._walls_given]
         else:
             kernel, inputs = lamp_kernels.walls_to_frame, [self.origin, self.rotation, self.walls]
         wp.launch(

@@ -788,13 +788,34 @@ def walls_to_frame(
 @wp.kernel
 def walls_to_grid_frame(
     origin: wp.vec3d,
-    rotation: wp.mat33,
+    rotation: wp.mat33d,
     world: wp.array[wp.vec4],
+    given: wp.array[wp.vec4d],
     # outputs
     frame: wp.array[wp.vec4],
     gap: wp.array[wp.float32],
 ):
-    """``walls_to_frame`` for positions the caller moved into the grid's frame: the grid's own float64 origin."""
+    """``walls_to_frame`` for positions the caller moved into the grid's frame in float64 (grid origin and rotation
+    in float64): a wall still as given (``world`` the float32 rounding of ``given``) is moved from its float64
+    plane, so that a wall far from the world origin keeps the positions' precision; a wall the caller rewrote
+    in ``world`` is moved from there."""
     w = wp.tid()
-    frame[w] = wall_in_frame(world[w], origin, rotation)
+    p = world[w]
+    q = given[w]
+    same = True
+    for k in range(4):
+        if wp.float32(q[k]) != p[k]:
+            same = False
+    if same:
+        nf = wp.vec3(0.0)
+        for k in range(3):
+            nf[k] = wp.float32((rotation[0, k] * q[0] + rotation[1, k] * q[1]) + rotation[2, k] * q[2])
+        dot = (q[0] * origin[0] + q[1] * origin[1]) + q[2] * origin[2]
+        frame[w] = wp.vec4(nf[0], nf[1], nf[2], wp.float32(q[3] - dot))
+    else:
+        r = wp.mat33()
+        for i in range(3):
+            for j in range(3):
+                r[i, j] = wp.float32(rotation[i, j])
+        frame[w] = wall_in_frame(p, origin, r)
     gap[w] = 3.0e38
