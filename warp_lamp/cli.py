@@ -947,6 +947,14 @@ def _run(args) -> int:
     probe = args.probe_radius if args.surfaces == "all" else 0.0
     grid = LampGrid.enclosing(centers, radii, cells_per_diameter=cpd, rotation=rotation, probe_radius=probe)
     lamp = ShiningLamp(grid, device=device, **_lamp_options(args))
+    if args.walls:
+        import warnings
+
+        from warp_lamp.validate import walls_behind_message
+
+        message = walls_behind_message(centers, radii, lamp.frame.wall_planes)
+        if message:
+            warnings.warn(message, stacklevel=2)
     if args.frames > 1:
         pos = wp.array(centers.astype(np.float32), dtype=wp.vec3, device=device)
         in_frame = False
