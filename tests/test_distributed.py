@@ -334,15 +334,23 @@ def test_scatter_walls_reference(device):
     reduced[rng.random(2 * cells) < 0.1] = EMPTY_KEY
     walls = [((0.0, 0.0, 1.0), (0.0, 0.0, 1.0)), ((2.2, 0.0, 0.0), (-1.0, 0.3, 0.2))]
     frame = LampFrame(grid, device, walls=check_walls(walls))
+    frame.launch_walls(True)
     rays, view = frame.rays(True), frame.walls_view(True)
     red = wp.array(reduced, dtype=wp.uint64, device=device)
     walled = wp.zeros(2 * cells, dtype=wp.int32, device=device)
-    wp.launch(lamp_kernels.lamp_walled_owners, dim=cells, inputs=[rays, red, view], outputs=[walled], device=device)
-    walled = walled.numpy()
+    recoils = wp.zeros(2 * cells, dtype=wp.int32, device=device)
+    wp.launch(
+        lamp_kernels.lamp_walled_owners,
+        dim=cells,
+        inputs=[rays, red, view, 63],
+        outputs=[walled, recoils],
+        device=device,
+    )
+    walled, recoils = walled.numpy(), recoils.numpy()
     mine = (reduced == global_keys_reference(keys, gids)) & (reduced != EMPTY_KEY)
     assert (walled <= -2).sum() > 20 and ((walled >= 0) & mine).sum() > 20 and ((walled == -1) & mine).sum() > 5
     axis = np.concatenate([np.full(int(grid.counts[a, 0] * grid.counts[a, 1]), a) for a in range(3)])
-    want, want_walls = scatter_walls_reference(reduced, keys, gids, caller, axis, n, walled, len(walls))
+    want, want_walls = scatter_walls_reference(reduced, keys, gids, caller, axis, n, walled, len(walls), recoils)
     counts = wp.zeros(3 * n, dtype=wp.int64, device=device)
     wall_counts = wp.zeros(3 * len(walls), dtype=wp.int64, device=device)
     wp.launch(
@@ -355,6 +363,7 @@ def test_scatter_walls_reference(device):
             wp.array(caller, dtype=wp.int32, device=device),
             red,
             view,
+            63,
         ],
         outputs=[counts, wall_counts],
         device=device,

@@ -859,7 +859,10 @@ def _lamp_options(args) -> dict:
         if dest in args.given or (dest in args.chosen):
             options[dest] = getattr(args, dest)
     if args.walls:
-        options["walls"] = [(w[:3], w[3:]) for w in args.walls]
+        # The wall's point is in the particles' units: the reader's factor to metres applies to it too (the
+        # distance between a body and a wall decides whether it rests there).
+        scale = getattr(getattr(args, "info", None), "scale", 1.0)
+        options["walls"] = [([x * scale for x in w[:3]], w[3:]) for w in args.walls]
     if args.surfaces == "all":
         options["surfaces"] = "all"
         options["probe_radius"] = args.probe_radius
@@ -944,6 +947,14 @@ def _run(args) -> int:
     probe = args.probe_radius if args.surfaces == "all" else 0.0
     grid = LampGrid.enclosing(centers, radii, cells_per_diameter=cpd, rotation=rotation, probe_radius=probe)
     lamp = ShiningLamp(grid, device=device, **_lamp_options(args))
+    if args.walls:
+        import warnings
+
+        from warp_lamp.validate import walls_behind_message
+
+        message = walls_behind_message(centers, radii, lamp.frame.wall_planes)
+        if message:
+            warnings.warn(message, stacklevel=2)
     if args.frames > 1:
         pos = wp.array(centers.astype(np.float32), dtype=wp.vec3, device=device)
         in_frame = False

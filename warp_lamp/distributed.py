@@ -803,11 +803,14 @@ class DistributedFirstHit(_RankSteps, FirstHit):
             return
         inputs = [self._cells(), self.keys, self.gids, self.caller]
         if self.frame.n_walls:
+            # Whether the body rests on a wall is the whole body's: the smallest gap over every rank's particles.
+            self.launch_contact()
+            self.comm.allreduce(self.frame.wall_gap, "min")
             self.wall_counts.zero_()
             wp.launch(
                 dist_kernels.dist_scatter_walls,
                 dim=self.grid.n_cells,
-                inputs=[*inputs, self.reduced, self.frame.walls_view(self._input.in_frame)],
+                inputs=[*inputs, self.reduced, self.frame.walls_view(self._input.in_frame), self.lamp_mask],
                 outputs=[self.counts, self.wall_counts],
                 device=self.device,
             )

@@ -8,6 +8,7 @@ runs the stages in order. :class:`FrameAveragedLamp` is a composite of K lamps i
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,8 @@ from warp_lamp.validate import (
     lamp_mask,
     lamp_names,
     resolve_device,
+    user_stacklevel,
+    walls_behind_message,
 )
 from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, check_probe_radius
 
@@ -327,9 +330,11 @@ class ShiningLamp:
             max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
                 keys per corner and lamp); over it, ValueError before anything is allocated.
             walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], the normal
-                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). A
-                ray that starts inside a wall lights nothing; a ray stops where it enters a wall, and the wall
-                takes the reaction when no sphere comes first (:meth:`diagnostics` ``wall_forces``). On an axis
+                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). In
+                the memo's mode a ray's fluid lies on the fluid side of every wall; the fluid between a wall and
+                the body pushes both, except where the wall crosses the body's span on that ray or the body rests
+                on the wall (its nearest particle within ``validate.WALL_REST`` of its radius), which seals that
+                end (docs/guide/walls.md; the walls' forces: :meth:`diagnostics` ``wall_forces``). On an axis
                 no wall cuts, the forces still sum to zero; on one a wall cuts, the body's and the walls' forces
                 sum to P times the lamp window that faces the fluid. With ``surfaces="all"`` the probe keeps rho
                 from every wall and the fluid beyond the box lies on the fluid side of every wall: nothing on a
@@ -781,6 +786,12 @@ def _enclosing(c: np.ndarray, r: np.ndarray, cells_per_diameter, rotation, probe
 def _host_update(c, r, mask, grid: LampGrid, options: LampOptions, device, *, weight: float = 1.0) -> ShiningLamp:
     """One update on checked host data: positions moved into the grid's frame in float64, then cast."""
     n = c.shape[0]
+    if options.walls is not None:
+        visible = c if mask is None else c[np.asarray(mask) != 0]
+        rv = r if mask is None else r[np.asarray(mask) != 0]
+        message = walls_behind_message(visible, rv, options.walls)
+        if message:
+            warnings.warn(message, stacklevel=user_stacklevel())
     lamp = ShiningLamp._build(grid, options, device)
     lamp._weight = weight
     pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)

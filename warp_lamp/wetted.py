@@ -500,6 +500,8 @@ class WettedSurface:
         self.walls_view = LampWalls()
         self.walls_view.frame = self.walls_frame
         self.walls_view.n = self.n_walls
+        self.walls_view.gap = wp.empty(0, dtype=wp.float32, device=d)  # the memo's mode's contact; unread here
+        self.walls_view.rest = 0.0
         #: Signed counts per wall and axis of the last update (3 int64 per wall), laid out like :attr:`counts`.
         self.wall_counts = wp.zeros(3 * self.n_walls, dtype=wp.int64, device=d)
         nw = lay["n_words"]

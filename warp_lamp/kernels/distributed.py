@@ -25,7 +25,7 @@ import warp as wp
 from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
 from warp_lamp.kernels.grid import LampGridParams, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
-from warp_lamp.kernels.lamp import LampParticles, clear_particle_counts, frame_sphere, seed_key, walled_owner
+from warp_lamp.kernels.lamp import LampParticles, clear_particle_counts, frame_sphere, seed_key, walled_loads
 from warp_lamp.kernels.porosity import PI, box_cell_volume
 from warp_lamp.kernels.walls import LampWalls
 
@@ -179,27 +179,31 @@ def dist_scatter_walls(
     caller: wp.array[wp.int32],
     reduced: wp.array[wp.uint64],
     walls: LampWalls,
+    lamp_mask: wp.int32,
     # outputs
     counts: wp.array[wp.int64],
     wall_counts: wp.array[wp.int64],
 ):
-    """``lamp_scatter_walls`` on the reduced keys (global ids, not flipped): ``walled_owner`` decides each ray from
-    the reduced key, the same on every rank; a particle's +1 / -1 goes to the rank whose own key is the reduced key
-    (as ``dist_scatter``), a wall's to every rank's wall counts (each rank holds the whole grid's)."""
+    """``lamp_scatter_walls`` on the reduced keys (global ids, not flipped): ``walled_loads`` decides each ray from
+    the reduced keys and the reduced wall gaps, the same on every rank; a particle's +1 / -1 goes to the rank whose
+    own key is the reduced key (as ``dist_scatter``), a wall's to every rank's wall counts (each rank holds the
+    whole grid's)."""
     c = wp.tid()
     a = grid_cell(grid, c)[0]
     for side in range(2):
-        owner = walled_owner(grid, reduced, walls, c, side)
+        who = walled_loads(grid, reduced, walls, c, side, lamp_mask)
         sign = wp.int64(1 - 2 * side)
-        if owner >= 0:
+        if who[0] >= 0:
             mine = keys[2 * c + side]
             if global_key(mine, gids) == reduced[2 * c + side]:
                 i = key_owner(mine)
                 if caller.shape[0] > 0:
                     i = caller[i]
                 wp.atomic_add(counts, 3 * i + a, sign)
-        elif owner <= -2:
-            wp.atomic_add(wall_counts, 3 * (-2 - owner) + a, sign)
+        elif who[0] <= -2:
+            wp.atomic_add(wall_counts, 3 * (-2 - who[0]) + a, sign)
+        if who[1] >= 0:
+            wp.atomic_add(wall_counts, 3 * who[1] + a, -sign)
 
 
 @wp.kernel

@@ -113,7 +113,7 @@ def reach_reference(centers, radii, corner, cell, counts, criterion: int) -> np.
     return out
 
 
-def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled, n_walls) -> tuple:
+def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled, n_walls, recoils=None) -> tuple:
     """The counts one rank scatters when walls bound the fluid, given who takes each ray of the reduced keys
     (``walled``, two per cell: a global id >= 0, wall w as -2 - w, or -1 for nobody): a particle's +1 (low lamp) /
     -1 (high lamp) goes to the rank's caller row where the reduced key is the rank's own key in global ids; a wall's
@@ -128,6 +128,8 @@ def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled
         n: Particles of the rank.
         walled: Who takes each ray, shape (2 C,).
         n_walls: Number of walls W.
+        recoils: Optional, shape (2 C,): the wall (>= 0, or -1) at each lamp's end of the fluid, which takes the
+            opposite of the lamp's count.
 
     Returns:
         (counts, wall_counts): int64, shapes (N, 3) and (W, 3).
@@ -138,6 +140,9 @@ def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled
     wall_counts = np.zeros((n_walls, 3), dtype=np.int64)
     for slot in np.flatnonzero(walled <= -2):
         wall_counts[-2 - int(walled[slot]), axis_of_cell[slot // 2]] += 1 if slot % 2 == 0 else -1
+    if recoils is not None:
+        for slot in np.flatnonzero(np.asarray(recoils) >= 0):
+            wall_counts[int(recoils[slot]), axis_of_cell[slot // 2]] -= 1 if slot % 2 == 0 else -1
     return counts, wall_counts
 
 
