@@ -443,6 +443,25 @@ def test_a_platen_moved_through_the_engine_lamp_is_honoured(device, rng):
         assert (f[:, 2].sum() < 0) == (z >= 0.0)  # lifted: wet underneath; resting or cut: sealed
 
 
+def test_engine_lamp_with_follow_places_the_walls_where_the_body_is(device, rng):
+    """EngineLamp with follow=True passes positions relative to a reference point: its walls move with them, so a
+    platen under a body far from the origin seals it as the in-frame path does (the walls were left in world
+    coordinates, putting the platen the reference's height away)."""
+    from warp_lamp.engines.core import EngineLamp
+
+    c, r = block_on_platen(rng, n=4)
+    c += np.array([40.0, -25.0, 60.0])  # the platen at z = 60
+    platen = [((0.0, 0.0, 60.0), (0.0, 0.0, 1.0))]
+    fz = {}
+    for follow in (False, True):
+        engine = EngineLamp(c, r, P, device=device, follow=follow, walls=platen)
+        fz[follow] = engine.forces(c)[:, 2].sum()
+    # A 4 x 4 block of unit spacing resting on the platen takes -P times its silhouette: the 16 unit squares less
+    # the gaps between the disks (0.77 of them at radius 0.5 with jitter)
+    assert -0.85 * P * 16 < fz[False] < -0.6 * P * 16
+    assert abs(fz[True] - fz[False]) <= 0.01 * abs(fz[False])
+
+
 @pytest.mark.parametrize("lamps", ["all", ["-x", "+z"]])
 def test_a_resting_body_and_lamp_subsets_match_the_float64_reference(device, rng, lamps):
     """A block resting on a platen with a tilted side wall, all lamps or a subset: owners, wall owners and counts
