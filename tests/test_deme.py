@@ -321,3 +321,45 @@ def test_inside_deme():
     vel = np.asarray(tracker.Velocities())
     assert np.abs(acc).max() > 0
     assert np.allclose(vel, acc * dt, rtol=1e-3, atol=1e-3 * np.abs(acc).max() * dt)
+
+
+def test_add_deme_spheres_and_the_example_on_the_stand_in():
+    """add_deme_spheres loads one template per distinct radius with its mass; the SphereTest example runs its whole
+    loop on the stand-in (lamp steps, contacts, stress, report), so its DEME calls are the ones the stand-in knows."""
+    from deme_standin import StandInDeme
+    from helpers import load_example
+
+    s = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    radii = np.round(s.radii, 4)  # a few distinct radii
+    solver = StandInDeme.DEMSolver(1)
+    _, tracker = deme_module.add_deme_spheres(solver, s.centers, radii, {"E": 1.0}, density=1000.0)
+    assert len(solver.templates) == len(np.unique(radii))
+    assert np.allclose(tracker.mass, 1000.0 * 4.0 / 3.0 * np.pi * radii**3)
+    assert np.allclose(tracker.pos, s.centers)
+    with pytest.raises(ValueError, match="density"):
+        deme_module.add_deme_spheres(solver, s.centers, radii, {}, density=0.0)
+    example = load_example("deme_sphere_test")
+    scene = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    scene.centers *= 0.97  # touching: contacts for the stress
+    lines = []
+    result = example.run(StandInDeme, scene, every=2, steps=6, check=3, device="cpu", log=lines.append)
+    assert result["steps"] == 6 and len(result["history"]) == 2 and result["contacts"] > 0
+    assert result["deme_force_on"] == "A" and result["mean_over_P"] > 0
+    assert result["cost_s"]["calls"] == 3 and "step" in result["cost_s"]
+    assert "| DEME stand-in |" in example.report(result) and "spheres, Initialize" in lines[0]
+
+
+def test_stand_in_speaks_deme_3_0_19():
+    """Every DEME method the stand-in implements, and so every one the adapter and example call, is in deme
+    3.0.19's bindings."""
+    from deme_standin import CONTACT_NAMES, SOLVER_NAMES, TRACKER_NAMES, StandInContacts
+
+    for cls, names in (
+        (StandInTracker, TRACKER_NAMES),
+        (StandInSolver, SOLVER_NAMES),
+        (StandInContacts, CONTACT_NAMES),
+    ):
+        own = {n for n in vars(cls) if n[:1].isupper()}
+        assert own and own <= names, own - names
+    with pytest.raises(AttributeError):
+        StandInSolver().SetTimestepSize(1e-6)  # a misspelling the real binding lacks

@@ -6,7 +6,7 @@ the engine allows (DEME's on the GPU). No engine is imported until an adapter is
 """
 
 from warp_lamp.engines.core import CallTimings, EngineLamp
-from warp_lamp.engines.deme import DemeClumps, DemeLamp, deme_unavailable, load_deme
+from warp_lamp.engines.deme import DemeClumps, DemeLamp, add_deme_spheres, deme_unavailable, load_deme
 from warp_lamp.engines.lammps import LammpsContacts, LammpsLamp, load_lammps, open_lammps, preload_mpich
 from warp_lamp.engines.yade import YadeLamp, yade_contacts, yade_omega
 
@@ -18,6 +18,7 @@ __all__ = [
     "LammpsContacts",
     "LammpsLamp",
     "YadeLamp",
+    "add_deme_spheres",
     "deme_unavailable",
     "load_deme",
     "load_lammps",

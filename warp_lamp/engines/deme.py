@@ -48,9 +48,9 @@ import numpy as np
 import warp as wp
 
 from warp_lamp.engines.core import CallTimings, EngineLamp
-from warp_lamp.validate import check_integer
+from warp_lamp.validate import check_integer, check_particles
 
-__all__ = ["DemeClumps", "DemeLamp", "deme_unavailable", "load_deme"]
+__all__ = ["DemeClumps", "DemeLamp", "add_deme_spheres", "deme_unavailable", "load_deme"]
 
 _EXTRA = 'pip install "warp-lamp[deme]"'
 
@@ -76,6 +76,38 @@ def load_deme():
     except ImportError as e:
         raise ImportError(f"deme: installed but does not load ({e}); {_EXTRA} brings its CUDA 12 wheels") from e
     return deme
+
+
+def add_deme_spheres(solver, centers, radii, material, *, density: float = 2620.0):
+    """Add spheres to a DEME solver (before ``Initialize()``) as one batch of one-sphere clumps, in the given order.
+
+    DEME gives every clump a template: this loads one sphere template per distinct radius (mass from ``density``,
+    DEME's own moment of inertia for a solid sphere), so a polydisperse body has as many templates as radii; with
+    many, call ``solver.DisableJitifyClumpTemplates()`` and ``DisableJitifyMassProperties()`` before
+    ``Initialize()``, so that DEME keeps them in device arrays instead of compiling them into its kernels.
+
+    Args:
+        solver: A ``deme.DEMSolver``, not yet initialised.
+        centers: Sphere centres [m], shape (N, 3).
+        radii: Sphere radii [m], shape (N,).
+        material: A material from ``solver.LoadMaterial``.
+        density: Particle density [kg/m^3], > 0.
+
+    Returns:
+        ``(batch, tracker)``: the ``DEMClumpBatch`` and ``solver.Track(batch)``, whose owners follow ``centers``.
+    """
+    c, r = check_particles(centers, radii)
+    if len(r) == 0:
+        raise ValueError("centers: need at least one sphere")
+    if not (np.isfinite(density) and density > 0):
+        raise ValueError(f"density: must be finite and > 0, got {density!r}")
+    bad = np.flatnonzero(r <= 0)
+    if len(bad):
+        raise ValueError(f"radii: must be > 0; radii[{bad[0]}] = {r[bad[0]]}")
+    unique, which = np.unique(r, return_inverse=True)
+    templates = [solver.LoadSphereType(float(density * 4.0 / 3.0 * np.pi * u**3), float(u), material) for u in unique]
+    batch = solver.AddClumps([templates[i] for i in which.ravel()], c.tolist())
+    return batch, solver.Track(batch)
 
 
 class DemeClumps:
