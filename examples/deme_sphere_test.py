@@ -109,8 +109,11 @@ def state(solver, lamp: DemeLamp, radii):
     return sigma, ratio, len(pairs), side
 
 
-def run(deme, scene, *, every=10, steps=40000, check=2000, tol=2e-3, cells=4.0, cor=COR, device=None, log=print):
-    """Settle the ball under the lamp; returns the result dict (stress, history, costs)."""
+def run(
+    deme, scene, *, every=10, steps=40000, check=2000, tol=2e-3, cells=4.0, cor=COR, device=None, keep=None, log=print
+):
+    """Settle the ball under the lamp; returns the result dict (stress, history, costs). ``keep``, a dict, receives
+    the ``solver``, ``tracker`` and ``lamp`` for more work on the settled ball."""
     t_start = time.perf_counter()
     dt = 0.1 * rayleigh_step(float(scene.radii.min()))
     solver, tracker, init_s = build(deme, scene.centers, scene.radii, dt=dt, cor=cor)
@@ -135,6 +138,8 @@ def run(deme, scene, *, every=10, steps=40000, check=2000, tol=2e-3, cells=4.0, 
             break
     run_s = time.perf_counter() - t0
     mean = float(np.trace(sigma) / 3.0)
+    if keep is not None:
+        keep.update(solver=solver, tracker=tracker, lamp=lamp)
     return {
         "engine": f"DEME {getattr(deme, '__version__', '?')}",
         "device": str(lamp.device),

@@ -234,6 +234,13 @@ class StandInSolver:
     def SetInitTimeStep(self, dt):
         self.dt = float(dt)
 
+    def GetTimeStepSize(self):
+        return self.dt
+
+    def DoDynamics(self, duration):
+        for _ in range(max(1, round(duration / self.dt))):
+            self.DoStepDynamics()
+
     def Initialize(self):
         self.initialized = True
 

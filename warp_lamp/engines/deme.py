@@ -381,8 +381,10 @@ class DemeLamp:
             raise RuntimeError(f"{name}: no load yet; call DemeLamp.update first")
 
     def _sync(self) -> None:
+        # Warp's stream only: a device-wide synchronisation would also wait for DEME's contact detection, which
+        # runs on its own streams beside the step.
         if self.device.is_cuda:
-            wp.synchronize_device(self.device)
+            wp.synchronize_stream(wp.get_stream(self.device))
 
     def update(self) -> None:
         """Read the owners' positions, run the lamp, and compute each owner's accelerations for :meth:`apply`."""
