@@ -363,3 +363,30 @@ def test_stand_in_speaks_deme_3_0_19():
         assert own and own <= names, own - names
     with pytest.raises(AttributeError):
         StandInSolver().SetTimestepSize(1e-6)  # a misspelling the real binding lacks
+
+
+def test_share_bench_on_the_stand_in_and_its_engines_row(tmp_path):
+    """bench/deme_share.py runs all its stages on the stand-in (the child process too) and writes one JSON with the
+    SphereTest and a share row per size and mode; `bench engines` reads and prints that file's numbers."""
+    import importlib.util
+
+    from warp_lamp import bench_engines
+
+    spec = importlib.util.spec_from_file_location("deme_share", deme_module.__file__.rsplit("/warp_lamp/", 1)[0]
+                                                  + "/bench/deme_share.py")  # fmt: skip
+    share = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(share)
+    out = tmp_path / "x-2026-11-28-deme.json"
+    args = ["--standin", "--json", str(out), "--big", "300", "--steps", "4", "--settle", "10", "--cap", "1"]
+    assert share.main(args) == 0
+    result = bench_engines.deme_section(path=out, run=False)
+    assert result["stages"]["share_big"] > 0  # the child process ran and its rows came back
+    rows = result["share"]
+    assert [(r["mode"], r["n"] > 100) for r in rows] == [
+        ("first-hit", False), ("wetted", False), ("first-hit", True), ("wetted", True)
+    ]  # fmt: skip
+    for r in rows:
+        assert 0 < r["share_every_10"] < r["share_every_1"] < 1 and r["updates"] >= 3
+    text = bench_engines.format_deme(result)
+    assert "| DEME stand-in |" in text and f"| {rows[2]['n']:,} | wetted" in text
+    assert "skipped" in bench_engines.format_deme({"skipped": "x"})
