@@ -293,32 +293,26 @@ def test_load_deme_errors(monkeypatch):
 
 @pytest.mark.skipif(deme_unavailable() is not None, reason=str(deme_unavailable()))
 def test_inside_deme():
-    """Inside DEME (GPU): the adapter reads DEME's positions on the device, and its queued load moves the owners
-    as a = F / m for one step (gravity off, spheres apart: no contacts)."""
+    """Inside DEME (GPU): the adapter reads DEME's positions on the device, and its queued load moves each owner by
+    a = F / m for one step (gravity off, spheres apart: no contacts). Built as the SphereTest example builds its
+    solver, so that DEME's compiled kernels are reused."""
+    from helpers import load_example
+
+    example = load_example("deme_sphere_test")
     deme = load_deme()
-    solver = deme.DEMSolver(1)
-    solver.SetVerbosity("ERROR")
-    mat = solver.LoadMaterial({"E": 1e9, "nu": 0.3, "CoR": 0.5, "mu": 0.5, "Crr": 0.0})
-    r, rho = 1e-3, 2600.0
-    m = rho * 4.0 / 3.0 * np.pi * r**3
-    tpl = solver.LoadSphereType(m, r, mat)
+    r = 2.5e-3
     axis = np.arange(4) * 3.0 * r
     xyz = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
-    batch = solver.AddClumps(tpl, xyz.tolist())
-    tracker = solver.Track(batch)
-    solver.InstructBoxDomainDimension((-0.02, 0.03), (-0.02, 0.03), (-0.02, 0.03))
-    solver.SetGravitationalAcceleration([0.0, 0.0, 0.0])
-    dt = 1e-6
-    solver.SetInitTimeStep(dt)
-    solver.Initialize()
-    lamp = DemeLamp(solver, tracker, 1e4, radii=np.full(len(xyz), r))
+    radii = np.full(len(xyz), r)
+    dt = 0.1 * example.rayleigh_step(r)
+    solver, tracker, _ = example.build(deme, xyz, radii, dt=dt)
+    lamp = DemeLamp(solver, tracker, 1e4, radii=radii)
     assert lamp.transfer == "device"
     lamp.update()
-    assert np.allclose(lamp._pos.numpy(), np.asarray(tracker.Positions()), atol=1e-9)
+    assert np.allclose(lamp._pos.numpy(), np.asarray(tracker.Positions()), rtol=0, atol=1e-7)
     acc, _ = lamp.accelerations()
     lamp.step(1)
-    solver.DoDynamicsThenSync(0.0)
-    vel = np.asarray(tracker.Velocities())
+    vel = np.asarray(tracker.Velocities(), dtype=np.float64)
     assert np.abs(acc).max() > 0
     assert np.allclose(vel, acc * dt, rtol=1e-3, atol=1e-3 * np.abs(acc).max() * dt)
 
