@@ -12,9 +12,11 @@ Stages, the JSON rewritten after each (so a stage that runs out of time keeps th
    ``AddAccFromDevice``, and the host list ``Positions()``), then :class:`~warp_lamp.engines.DemeLamp` with the
    lamp every step, first-hit and wetted (probe one mean radius): its read, lamp and write parts, the per-step
    queueing and DEME's step beside them.
-3. The same at about ``--big`` spheres (a cubic-lattice ball, 16 radii from 0.495 to 0.5 spacings: neighbours
-   apart by at most 1% of a spacing, so DEME's contact detection sees every lattice neighbour), in a child process
-   under the time left; wetted capped (``--cap`` seconds of updates).
+3. The same at about ``--big`` spheres (a cubic-lattice ball, radii drawn from the specimen's largest fifth, the
+   spacing twice the largest: neighbours touch or stand apart by up to 8% of the spacing, a looser body than the
+   specimen, with fewer contacts), in a child process under the time left; wetted capped (``--cap`` seconds of updates). DEME compiles its domain box and its
+   templates' volumes into its kernels: both bodies get one box and the specimen's templates, so that DEME compiles
+   once (this is why the SphereTest runs in a box wide enough for the big ball).
 
 The lamp's share of a step is (read + lamp + write) / every + queueing, over that plus DEME's step; printed for the
 lamp every step and every 10 steps (the memo's ``ct_pressrate``).
@@ -50,18 +52,21 @@ def example():
     return sys.modules.get("deme_sphere_test") or _load("deme_sphere_test", ROOT / "examples" / "deme_sphere_test.py")
 
 
-def lattice_body(n_target: int, spacing: float = 0.005, *, levels: int = 16, seed: int = 0):
-    """A ball cut from a cubic lattice with about ``n_target`` spheres, radii in [0.495, 0.5] spacing on ``levels``
-    values (DEME loads a template per radius)."""
+def lattice_body(n_target: int, pool, *, seed: int = 0):
+    """A ball cut from a cubic lattice with about ``n_target`` spheres; spacing twice the largest radius of
+    ``pool``'s upper fifth, radii drawn from that fifth (neighbours touch or stand apart by up to 8% of the spacing;
+    no overlaps), so that DEME's templates can be the SphereTest's."""
     from warp_lamp.scenes import Scene
 
+    pool = np.sort(np.asarray(pool, dtype=np.float64))
+    top = pool[int(0.8 * len(pool)) :]
+    spacing = 2.0 * float(top[-1])
     k = int(np.ceil((6.0 * n_target / np.pi) ** (1.0 / 3.0))) + 1
     axis = (np.arange(k) - (k - 1) / 2.0) * spacing
     pts = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     radius = (k - 1) / 2.0 * spacing
     pts = pts[np.linalg.norm(pts, axis=1) <= radius - 0.5 * spacing]
-    rng = np.random.default_rng(seed)
-    radii = spacing * (0.495 + 0.005 * rng.integers(0, levels, len(pts)) / (levels - 1))
+    radii = np.random.default_rng(seed).choice(top, len(pts))
     return Scene("lattice ball", pts, radii, np.zeros(3), radius)
 
 
@@ -185,14 +190,32 @@ def _deme(standin: bool):
     return load_deme()
 
 
+def _small_scene(standin: bool):
+    from warp_lamp.scenes import scene_lattice_ball, scene_sphere_specimen
+
+    if standin:
+        s = scene_lattice_ball(diameter=0.03)
+        s.centers *= 0.97
+        return s
+    return scene_sphere_specimen()
+
+
+def _box(big):
+    """One DEME domain for both bodies (the example's, unless the big body needs more), so DEME compiles once."""
+    half = max(0.42, float(np.abs(big.centers).max() + big.radii.max()) * 1.05) if big is not None else 0.42
+    return ((-half, half),) * 3
+
+
 def big_stage(args) -> dict:
     """Stage 3 in a child process: build the big body, measure, return its rows."""
     deme = _deme(args.standin)
     ex = example()
-    scene = lattice_body(args.big)
+    small = _small_scene(args.standin)
+    scene = lattice_body(args.big, small.radii)
+    box = _box(scene)
     t0 = time.perf_counter()
-    dt = 0.1 * ex.rayleigh_step(float(scene.radii.min()))
-    solver, tracker, init_s = ex.build(deme, scene.centers, scene.radii, dt=dt)
+    dt = 0.1 * ex.rayleigh_step(float(small.radii.min()))  # the SphereTest's step, as DEME's kernels were built for
+    solver, tracker, init_s = ex.build(deme, scene.centers, scene.radii, dt=dt, box=box, template_radii=small.radii)
     print(f"  {scene.n:,} spheres built in {time.perf_counter() - t0:.1f} s (Initialize {init_s:.1f} s)", flush=True)
     device = "cpu" if args.standin else None
     rows = measure(deme, solver, tracker, scene.radii, steps=args.steps, cap_s=args.cap, device=device,
@@ -261,15 +284,14 @@ def main(argv=None) -> int:
             json.dump(result, f, indent=1)
 
     # 1. The SphereTest (its settled solver is stage 2's).
-    from warp_lamp.scenes import scene_lattice_ball, scene_sphere_specimen
-
-    scene = scene_lattice_ball(diameter=0.03) if args.standin else scene_sphere_specimen()
-    if args.standin:
-        scene.centers *= 0.97
+    scene = _small_scene(args.standin)
+    box = _box(lattice_body(args.big, scene.radii) if args.big > 0 else None)
     keep = {}
     t0 = time.perf_counter()
     log = lambda m: print(m, flush=True)  # noqa: E731
-    st = ex.run(deme, scene, steps=args.settle, check=min(2000, args.settle), device=device, keep=keep, log=log)
+    st = ex.run(
+        deme, scene, steps=args.settle, check=min(2000, args.settle), device=device, box=box, keep=keep, log=log
+    )
     result["sphere_test"] = st
     result["stages"]["sphere_test"] = time.perf_counter() - t0
     save()

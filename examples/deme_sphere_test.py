@@ -44,6 +44,9 @@ COR = 0.2  # restitution: the contact dashpots' damping
 DENSITY = 2620.0  # [kg/m^3]
 PRESSURE = 10e6  # [Pa]
 MEASURE = 0.09  # measurement sphere diameter [m]
+#: DEME's domain [m]: DEME compiles its box into its kernels, so one box for this ball and the share bench's 1M-sphere
+#: ball (bench/deme_share.py) lets DEME compile once for both.
+BOX = ((-0.42, 0.42),) * 3
 
 
 def rayleigh_step(radius: float, *, young: float = E, poisson: float = NU, density: float = DENSITY) -> float:
@@ -52,17 +55,18 @@ def rayleigh_step(radius: float, *, young: float = E, poisson: float = NU, densi
     return np.pi * radius * np.sqrt(density / shear) / (0.1631 * poisson + 0.8766)
 
 
-def build(deme, centers, radii, *, dt: float, cor: float = COR, verbosity: str = "WARNING"):
-    """A DEME solver on one GPU with the spheres (one-sphere clumps, templates in device arrays), initialised;
-    returns ``(solver, tracker, init_seconds)``."""
+def build(deme, centers, radii, *, dt: float, cor: float = COR, box=BOX, template_radii=None, verbosity="WARNING"):
+    """A DEME solver on one GPU with the spheres (one-sphere clumps, templates in device arrays) in ``box``
+    (((xlo, xhi), (ylo, yhi), (zlo, zhi)) [m]), initialised; ``template_radii``: templates to load besides the
+    spheres' own (:func:`~warp_lamp.engines.add_deme_spheres`). Returns ``(solver, tracker, init_seconds)``."""
+    lo, hi = np.array([b[0] for b in box]), np.array([b[1] for b in box])
+    if np.any(centers - radii[:, None] < lo) or np.any(centers + radii[:, None] > hi):
+        raise ValueError(f"box: the spheres reach outside {box}")
     solver = deme.DEMSolver(1)
     solver.SetVerbosity(verbosity)
     mat = solver.LoadMaterial({"E": E, "nu": NU, "CoR": cor, "mu": MU, "Crr": 0.0})
-    _, tracker = add_deme_spheres(solver, centers, radii, mat, density=DENSITY)
-    lo = centers.min(axis=0) - 4.0 * radii.max()
-    hi = centers.max(axis=0) + 4.0 * radii.max()
-    span = float((hi - lo).max())
-    solver.InstructBoxDomainDimension(*[(float(lo[k]), float(lo[k]) + span) for k in range(3)])
+    _, tracker = add_deme_spheres(solver, centers, radii, mat, density=DENSITY, template_radii=template_radii)
+    solver.InstructBoxDomainDimension(*[(float(a), float(b)) for a, b in box])
     solver.SetGravitationalAcceleration([0.0, 0.0, 0.0])
     solver.SetInitTimeStep(dt)
     solver.DisableJitifyClumpTemplates()
@@ -110,13 +114,25 @@ def state(solver, lamp: DemeLamp, radii):
 
 
 def run(
-    deme, scene, *, every=10, steps=40000, check=2000, tol=2e-3, cells=4.0, cor=COR, device=None, keep=None, log=print
+    deme,
+    scene,
+    *,
+    every=10,
+    steps=40000,
+    check=2000,
+    tol=2e-3,
+    cells=4.0,
+    cor=COR,
+    box=BOX,
+    device=None,
+    keep=None,
+    log=print,
 ):
-    """Settle the ball under the lamp; returns the result dict (stress, history, costs). ``keep``, a dict, receives
-    the ``solver``, ``tracker`` and ``lamp`` for more work on the settled ball."""
+    """Settle the ball under the lamp; returns the result dict (stress, history, costs). ``box``: DEME's domain;
+    ``keep``, a dict, receives the ``solver``, ``tracker`` and ``lamp`` for more work on the settled ball."""
     t_start = time.perf_counter()
     dt = 0.1 * rayleigh_step(float(scene.radii.min()))
-    solver, tracker, init_s = build(deme, scene.centers, scene.radii, dt=dt, cor=cor)
+    solver, tracker, init_s = build(deme, scene.centers, scene.radii, dt=dt, cor=cor, box=box)
     options = {"device": device} if device else {}
     lamp = DemeLamp(solver, tracker, PRESSURE, radii=scene.radii, every=every, cells_per_diameter=cells, **options)
     log(

@@ -12,7 +12,7 @@ from warp_lamp.engines import DemeClumps, DemeLamp, EngineLamp, deme_unavailable
 from warp_lamp.engines import deme as deme_module
 from warp_lamp.kernels import owners as owner_kernels
 from warp_lamp.reference.owners import owner_loads_reference, quaternion_matrices, sphere_centers_reference
-from warp_lamp.scenes import scene_lattice_ball
+from warp_lamp.scenes import scene_lattice_ball, scene_sphere_specimen
 
 P = 1.0e6
 
@@ -305,7 +305,9 @@ def test_inside_deme():
     xyz = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     radii = np.full(len(xyz), r)
     dt = 0.1 * example.rayleigh_step(r)
-    solver, tracker, _ = example.build(deme, xyz, radii, dt=dt)
+    # The SphereTest's box and templates (its radii besides these): DEME compiles both into its kernels.
+    specimen = scene_sphere_specimen()
+    solver, tracker, _ = example.build(deme, xyz, radii, dt=dt, template_radii=specimen.radii)
     lamp = DemeLamp(solver, tracker, 1e4, radii=radii)
     assert lamp.transfer == "device"
     lamp.update()

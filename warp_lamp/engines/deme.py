@@ -78,7 +78,7 @@ def load_deme():
     return deme
 
 
-def add_deme_spheres(solver, centers, radii, material, *, density: float = 2620.0):
+def add_deme_spheres(solver, centers, radii, material, *, density: float = 2620.0, template_radii=None):
     """Add spheres to a DEME solver (before ``Initialize()``) as one batch of one-sphere clumps, in the given order.
 
     DEME gives every clump a template: this loads one sphere template per distinct radius (mass from ``density``,
@@ -92,6 +92,9 @@ def add_deme_spheres(solver, centers, radii, material, *, density: float = 2620.
         radii: Sphere radii [m], shape (N,).
         material: A material from ``solver.LoadMaterial``.
         density: Particle density [kg/m^3], > 0.
+        template_radii: Radii to load templates for besides those of ``radii`` [m]. DEME compiles its templates'
+            volumes into its kernels, so two solvers share their compiled kernels (and skip DEME's minutes of
+            compiling) only with the same templates, domain box and material: load a common set in each.
 
     Returns:
         ``(batch, tracker)``: the ``DEMClumpBatch`` and ``solver.Track(batch)``, whose owners follow ``centers``.
@@ -104,9 +107,13 @@ def add_deme_spheres(solver, centers, radii, material, *, density: float = 2620.
     bad = np.flatnonzero(r <= 0)
     if len(bad):
         raise ValueError(f"radii: must be > 0; radii[{bad[0]}] = {r[bad[0]]}")
-    unique, which = np.unique(r, return_inverse=True)
+    pool = r if template_radii is None else np.concatenate([r, np.asarray(template_radii, dtype=np.float64).ravel()])
+    if not np.all(np.isfinite(pool) & (pool > 0)):
+        raise ValueError("template_radii: must be finite and > 0")
+    unique = np.unique(pool)
+    which = np.searchsorted(unique, r)
     templates = [solver.LoadSphereType(float(density * 4.0 / 3.0 * np.pi * u**3), float(u), material) for u in unique]
-    batch = solver.AddClumps([templates[i] for i in which.ravel()], c.tolist())
+    batch = solver.AddClumps([templates[i] for i in which], c.tolist())
     return batch, solver.Track(batch)
 
 
