@@ -14,9 +14,10 @@ Stages, the JSON rewritten after each (so a stage that runs out of time keeps th
    queueing and DEME's step beside them.
 3. The same at about ``--big`` spheres (a cubic-lattice ball, radii drawn from the specimen's largest fifth, the
    spacing twice the largest: neighbours touch or stand apart by up to 8% of the spacing, a looser body than the
-   specimen, with fewer contacts), in a child process under the time left; wetted capped (``--cap`` seconds of updates). DEME compiles its domain box and its
-   templates' volumes into its kernels: both bodies get one box and the specimen's templates, so that DEME compiles
-   once (this is why the SphereTest runs in a box wide enough for the big ball).
+   specimen, with fewer contacts), in a child process under the time left; wetted capped (``--cap`` seconds of
+   updates). DEME compiles its domain box and its templates' volumes into its kernels: both bodies get one box and
+   the specimen's templates, so that DEME compiles once (this is why the SphereTest runs in a box wide enough for
+   the big ball).
 
 The lamp's share of a step is (read + lamp + write) / every + queueing, over that plus DEME's step; printed for the
 lamp every step and every 10 steps (the memo's ``ct_pressrate``).
