@@ -334,6 +334,11 @@ def test_add_deme_spheres_and_the_example_on_the_stand_in():
     assert np.allclose(tracker.pos, s.centers)
     with pytest.raises(ValueError, match="density"):
         deme_module.add_deme_spheres(solver, s.centers, radii, {}, density=0.0)
+    extra = np.array([1e-3, radii[0], 4e-3])  # a superset: DEME's kernels compiled for another body's templates
+    solver = StandInDeme.DEMSolver(1)
+    _, tracker = deme_module.add_deme_spheres(solver, s.centers, radii, {}, density=1000.0, template_radii=extra)
+    assert [t[1] for t in solver.templates] == np.unique(np.concatenate([radii, extra])).tolist()
+    assert np.allclose(tracker.mass, 1000.0 * 4.0 / 3.0 * np.pi * radii**3)  # each sphere its own radius's template
     example = load_example("deme_sphere_test")
     scene = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
     scene.centers *= 0.97  # touching: contacts for the stress
