@@ -16,8 +16,8 @@ spring law built in): E = 100 GPa (the memo's contact modulus), Poisson 0.27 (1 
 friction mu = 0.5, no rolling resistance, restitution 0.2 for damping (DEME has no local damping: its contact
 dashpots settle the ball), density 2620 kg/m^3, no gravity, a time step of a tenth of the smallest sphere's Rayleigh
 time. DEME's domain is ``BOX`` (+-0.42 m): DEME compiles its box and templates into its kernels, and this one also
-holds the share bench's 1M-sphere ball (``bench/deme_share.py``), so DEME compiles once for both. Statics do not depend on the law's stiffness or the masses: the ball should sit at about 0.96 P, as in the
-other engines.
+holds the share bench's 1M-sphere ball (``bench/deme_share.py``), so DEME compiles once for both. Statics do not
+depend on the law's stiffness or the masses: the ball should sit at about 0.96 P, as in the other engines.
 
 At each check it prints the stress in the 90 mm measurement sphere (PFC's formula with the porosity correction,
 :func:`warp_lamp.measures.sphere_stress`, from DEME's contact forces, ``GetContactDetailedInfo``) over P, centred
