@@ -84,8 +84,12 @@ def _times(fn, repeats: int) -> list[float]:
     return out
 
 
-def measure(deme, solver, tracker, radii, *, steps: int, cap_s: float, modes=MODES, device=None, log=print) -> list:
-    """Per-step costs on a built solver: DEME alone, DEME's copies, and the lamp in each mode (every step)."""
+def measure(
+    deme, solver, tracker, radii, *, steps: int, cap_s: float, modes=MODES, device=None, hold=None, log=print
+) -> list:
+    """Per-step costs on a built solver: DEME alone, DEME's copies, and the lamp in each mode (every step).
+    ``hold``: a DemeLamp whose last load is queued (untimed) before each of DEME's lone steps, so that a settled
+    ball stays under pressure while DEME is timed alone."""
     from warp_lamp.engines import DemeLamp
 
     n = len(radii)
@@ -93,9 +97,14 @@ def measure(deme, solver, tracker, radii, *, steps: int, cap_s: float, modes=MOD
     dev = wp.get_device(device) if device else wp.get_device("cuda:0" if wp.is_cuda_available() else "cpu")
     ordinal = dev.ordinal if dev.is_cuda else 0
     dt = float(solver.GetTimeStepSize())
-    for _ in range(5):
+    alone = []
+    for k in range(steps + 5):
+        if hold is not None:
+            hold.apply()
+        t0 = time.perf_counter()
         solver.DoStepDynamics()
-    alone = _times(solver.DoStepDynamics, steps)
+        if k >= 5:
+            alone.append(time.perf_counter() - t0)
     t0 = time.perf_counter()
     solver.DoDynamics(steps * dt)
     bulk = (time.perf_counter() - t0) / steps
@@ -300,7 +309,7 @@ def main(argv=None) -> int:
     # 2. Shares at 4,628 on the settled ball.
     t0 = time.perf_counter()
     rows = measure(deme, keep["solver"], keep["tracker"], scene.radii, steps=args.steps, cap_s=args.cap,
-                   device=device, log=log)  # fmt: skip
+                   device=device, hold=keep["lamp"], log=log)  # fmt: skip
     result["share"] = rows
     result["stages"]["share_small"] = time.perf_counter() - t0
     save()
