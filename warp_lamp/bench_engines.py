@@ -234,7 +234,7 @@ def deme_section(*, path=None, run: bool | None = None, timeout: float = 600.0) 
         files = sorted(RESULTS.glob("*-deme.json"), key=lambda f: (f.name.split("-", 1)[-1], f.name))
         if not files:
             reason = deme_unavailable() or "no DEME result file"
-            return {"skipped": f"{reason}; bench/gpu/parts/deme38.sh writes bench/results/<card>-<date>-deme.json"}
+            return {"skipped": f"{reason}; on a GPU, bench/deme_share.py writes bench/results/<card>-<date>-deme.json"}
         path = files[-1]
     path = Path(path)
     return {**json.loads(path.read_text()), "source": path.name}
