@@ -85,7 +85,18 @@ def _times(fn, repeats: int) -> list[float]:
 
 
 def measure(
-    deme, solver, tracker, radii, *, steps: int, cap_s: float, modes=MODES, device=None, hold=None, log=print
+    deme,
+    solver,
+    tracker,
+    radii,
+    *,
+    steps: int,
+    cap_s: float,
+    modes=MODES,
+    device=None,
+    hold=None,
+    on_row=None,
+    log=print,
 ) -> list:
     """Per-step costs on a built solver: DEME alone, DEME's copies, and the lamp in each mode (every step).
     ``hold``: a DemeLamp whose last load is queued (untimed) before each of DEME's lone steps, so that a settled
@@ -160,6 +171,8 @@ def measure(
             lamp_part = update / every + c["apply"]
             row[f"share_every_{every}"] = lamp_part / (lamp_part + c["step"])
         rows.append(row)
+        if on_row is not None:
+            on_row(rows)
         log(
             f"  {mode}: {c['calls']} updates{' (capped)' if capped else ''}, read {row['read_s'] * 1e6:.0f} us, "
             f"lamp {row['lamp_s'] * 1e3:.2f} ms, write {row['write_s'] * 1e6:.0f} us, queue {row['apply_s'] * 1e6:.0f} "
@@ -188,6 +201,7 @@ def table(result: dict) -> str:
 
 
 sys.path.insert(0, str(ROOT / "tests"))  # the stand-in (deme_standin.py)
+sys.path.insert(1, str(ROOT))  # warp_lamp from this checkout, wherever the script runs from
 
 
 def _deme(standin: bool):
@@ -216,8 +230,9 @@ def _box(big):
     return ((-half, half),) * 3
 
 
-def big_stage(args) -> dict:
-    """Stage 3 in a child process: build the big body, measure, return its rows."""
+def big_stage(args) -> None:
+    """Stage 3 in a child process: build the big body and measure, rewriting ``args.json`` after each mode (so a
+    mode the parent's time limit stops keeps the rows before it)."""
     deme = _deme(args.standin)
     ex = example()
     small = _small_scene(args.standin)
@@ -227,10 +242,15 @@ def big_stage(args) -> dict:
     dt = 0.1 * ex.rayleigh_step(float(small.radii.min()))  # the SphereTest's step, as DEME's kernels were built for
     solver, tracker, init_s = ex.build(deme, scene.centers, scene.radii, dt=dt, box=box, template_radii=small.radii)
     print(f"  {scene.n:,} spheres built in {time.perf_counter() - t0:.1f} s (Initialize {init_s:.1f} s)", flush=True)
+
+    def save(rows):
+        with open(args.json, "w") as f:
+            json.dump({"n": scene.n, "initialize_s": init_s, "rows": rows}, f)
+
+    save([])
     device = "cpu" if args.standin else None
-    rows = measure(deme, solver, tracker, scene.radii, steps=args.steps, cap_s=args.cap, device=device,
-                   log=lambda m: print(m, flush=True))  # fmt: skip
-    return {"n": scene.n, "initialize_s": init_s, "rows": rows}
+    measure(deme, solver, tracker, scene.radii, steps=args.steps, cap_s=args.cap, device=device, on_row=save,
+            log=lambda m: print(m, flush=True))  # fmt: skip
 
 
 def warm() -> None:
@@ -273,8 +293,7 @@ def main(argv=None) -> int:
         warm()
         return 0
     if args.stage == "big":
-        with open(args.json, "w") as f:
-            json.dump(big_stage(args), f)
+        big_stage(args)
         return 0
     deme = _deme(args.standin)
     ex = example()
@@ -322,17 +341,15 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         try:
             run = subprocess.run(cmd, timeout=left, check=False)
-            if run.returncode == 0 and child.exists():
-                big = json.loads(child.read_text())
-                result["share"] += big["rows"]
-                result["big_initialize_s"] = big["initialize_s"]
-                result["stages"]["share_big"] = time.perf_counter() - t0
-            else:
-                result["stages"]["share_big"] = f"failed (exit {run.returncode})"
+            status = time.perf_counter() - t0 if run.returncode == 0 else f"failed (exit {run.returncode})"
         except subprocess.TimeoutExpired:
-            result["stages"]["share_big"] = f"stopped after {left:.0f} s (the budget)"
-        finally:
-            child.unlink(missing_ok=True)
+            status = f"stopped after {left:.0f} s (the budget)"
+        result["stages"]["share_big"] = status
+        if child.exists():  # the rows the child finished, whatever stopped it
+            big = json.loads(child.read_text())
+            result["share"] += big["rows"]
+            result["big_initialize_s"] = big["initialize_s"]
+            child.unlink()
     else:
         result["stages"]["share_big"] = f"skipped ({left:.0f} s left)"
     save()
