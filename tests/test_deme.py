@@ -300,13 +300,14 @@ def test_inside_deme():
 
     example = load_example("deme_sphere_test")
     deme = load_deme()
-    r = 2.5e-3
+    # The SphereTest's box and templates (one of its radii here, all of them loaded): DEME compiles both into its
+    # kernels, so this solver reuses the example's compiled kernels.
+    specimen = scene_sphere_specimen()
+    r = float(specimen.radii.max())
     axis = np.arange(4) * 3.0 * r
     xyz = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
     radii = np.full(len(xyz), r)
-    dt = 0.1 * example.rayleigh_step(r)
-    # The SphereTest's box and templates (its radii besides these): DEME compiles both into its kernels.
-    specimen = scene_sphere_specimen()
+    dt = 0.1 * example.rayleigh_step(float(specimen.radii.min()))
     solver, tracker, _ = example.build(deme, xyz, radii, dt=dt, template_radii=specimen.radii)
     lamp = DemeLamp(solver, tracker, 1e4, radii=radii)
     assert lamp.transfer == "device"
