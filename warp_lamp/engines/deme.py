@@ -378,7 +378,7 @@ class DemeLamp:
         pos = np.asarray(self.tracker.Positions(), dtype=np.float64).reshape(-1, 3)
         if pos.shape != (k, 3):
             raise RuntimeError(f"tracker: Positions() gave {pos.shape[0]} owners, expected {k}")
-        if self.clumps.single and not self.torques:
+        if self.clumps.single:  # one sphere at each centre of mass: no orientation needed
             return pos, None
         quats = np.asarray(self.tracker.OrientationQuaternions(), dtype=np.float64).reshape(-1, 4)
         return pos, quats
