@@ -78,6 +78,15 @@ def build(deme, centers, radii, *, dt: float, cor: float = COR, box=BOX, templat
     return solver, tracker, time.perf_counter() - t0
 
 
+def _vec3s(values) -> np.ndarray:
+    """DEME's ``list[float3]`` as an (n, 3) float64 array (sequences of three numbers, or objects with x, y, z)."""
+    values = list(values)
+    try:
+        return np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    except (TypeError, ValueError):
+        return np.array([[v.x, v.y, v.z] for v in values], dtype=np.float64).reshape(-1, 3)
+
+
 def contacts(solver, owner_ids, positions):
     """DEME's sphere-sphere contacts among the tracked owners: pairs as tracker indices, shape (C, 2), and the force
     each contact puts on its first sphere [N], shape (C, 3); and which owner DEME's force acts on ("A" or "B",
@@ -85,7 +94,7 @@ def contacts(solver, owner_ids, positions):
     info = solver.GetContactDetailedInfo()
     a = np.asarray(info.GetAOwner(), dtype=np.int64)
     b = np.asarray(info.GetBOwner(), dtype=np.int64)
-    f = np.asarray(info.GetForce(), dtype=np.float64).reshape(-1, 3)
+    f = _vec3s(info.GetForce())
     ids = np.asarray(owner_ids, dtype=np.int64)
     where = np.full(int(max(ids.max(), a.max(initial=0), b.max(initial=0))) + 1, -1, dtype=np.int64)
     where[ids] = np.arange(len(ids))
