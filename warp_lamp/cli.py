@@ -424,7 +424,8 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
         help="speed against error, on every device present, with peers (bench lamp, porosity, tolerance, engines)",
         description="Time the lamp (bench lamp) or the porosity methods (bench porosity) against their error; "
         "check tolerance='s choices (bench tolerance); time other engines' pressure boundaries (bench engines). "
-        "bench lamp takes about a minute with --quick on a CPU and about 10 minutes on a GPU; bench porosity "
+        "bench lamp --quick takes about 40 s of CPU (a minute the first time, compiling) and about 10 minutes on "
+        "a GPU; bench porosity "
         "--paper about 4 minutes on 2 CPU cores.",
         formatter_class=_Formatter,
     )
@@ -444,7 +445,7 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
     bench.add_argument("--paper", action="store_true", help="porosity: also reproduce the paper's Table 1 and 3.2")
     bench.add_argument("--target", action="store_true", help="porosity: also time the 1 mm, 0.1 mm target scene")
     bench.add_argument("--histograms", metavar="PATH", help="porosity --paper: histograms as a PNG (needs matplotlib)")
-    bench.add_argument("--quick", action="store_true", help="a CPU-sized subset, under a minute")
+    bench.add_argument("--quick", action="store_true", help="a CPU-sized subset (about 40 s of CPU)")
     bench.add_argument("--device", action="append", help="a Warp device to time (repeatable; default: all)")
     bench.add_argument("--json", metavar="PATH", help="write the results as JSON (- for standard output)")
     bench.add_argument("--plot", metavar="PATH", help="lamp: time against error as a PNG (needs matplotlib)")
