@@ -918,6 +918,7 @@ def _run(args) -> int:
 
     from warp_lamp import LampGrid, ShiningLamp, porosity
     from warp_lamp.frames import lamp_stress_frame
+    from warp_lamp.lamp import _warn_fines
     from warp_lamp.measures import envelope_stress
     from warp_lamp.scenes import scene_sphere_specimen
 
@@ -963,6 +964,7 @@ def _run(args) -> int:
         centers, body_center = centers - shift, np.zeros(3)
     probe = args.probe_radius if args.surfaces == "all" else 0.0
     grid = LampGrid.enclosing(centers, radii, cells_per_diameter=cpd, rotation=rotation, probe_radius=probe)
+    _warn_fines(radii, grid, args.criterion)
     lamp = ShiningLamp(grid, device=device, **_lamp_options(args))
     if args.frames > 1:
         pos = wp.array(centers.astype(np.float32), dtype=wp.vec3, device=device)

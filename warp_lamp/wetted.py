@@ -225,6 +225,14 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     nwx = int((n[0] + 31) // 32)
     n_words = nwx * int(n[1]) * int(n[2])
     if n_words >= 2**31 // 8 or int(n.prod()) >= 2**31 - 1:
+        size = n * h
+        if 2.0 * rho >= 0.5 * float(size.min()):
+            # The probe's margin is most of the grid: the probe radius is what to change, not the cells.
+            raise ValueError(
+                f"probe_radius: {rho:.6g} takes a margin of {rho:.6g} on every side, half the grid or more, and "
+                f"makes {int(n.prod()):,} voxels, too many for the wetted-surface mode (int32 indices): take a "
+                "smaller probe_radius (a quarter to two mean particle radii) or larger cells"
+            )
         raise ValueError(f"grid: {int(n.prod()):,} voxels are too many for the wetted-surface mode (int32 indices)")
     table = dilation_table(h, rho)
     table_band = dilation_table(h, band_radius(h, rho))
