@@ -2,6 +2,7 @@
 engine writes that must be read or refused (YADE's legacy VTK, a dump still being written, wrong counts, bad ids,
 a byte-order mark), and a report whose every number carries its unit."""
 
+import json
 import re
 import subprocess
 import sys
@@ -278,8 +279,11 @@ def test_report_units_follow_the_inputs(tmp_path, device):
     """Lengths in mm without --scale: no line claims newtons, forces and moments are in Pa*L^2 and Pa*L^3 and a
     units line says so; with --scale 0.001 they are N and N*m. Every report line with a number has a unit."""
     src = _csv(tmp_path / "mm.csv")
-    out, _ = _cli("--particles", str(src), "--device", device, "--grid", "2", "2", "2")
+    report = tmp_path / "r.json"
+    out, _ = _cli("--particles", str(src), "--device", device, "--grid", "2", "2", "2", "--json", str(report))
     lines = out.splitlines()
+    saved = json.loads(report.read_text())["units"]
+    assert saved == {"length": "L", "force": "Pa·L²", "moment": "Pa·L³", "pressure": "Pa"}
     claims = [line for line in lines if not line.startswith("units") and re.search(r"\bN\b", line)]
     assert not claims, out
     assert "Pa·L²" in next(line for line in lines if line.startswith("forces"))
@@ -290,7 +294,7 @@ def test_report_units_follow_the_inputs(tmp_path, device):
     unit_words = r"(m|mm|L|N|N·m|Pa|Pa·L²|Pa·L³|ms|bytes|cells|particles|spheres|dimensionless|void fraction|%)"
     for line in lines:
         key = line.split()[0]
-        if key in ("device", "units") or line.startswith("particles  units"):
+        if key in ("device", "units", "wrote") or line.startswith("particles  units"):
             continue
         # each number is followed (soon) by a unit, or is a count with its noun, or is a ratio said to be one
         if re.search(r"\d", line):

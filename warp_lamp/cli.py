@@ -1056,6 +1056,8 @@ def _run(args) -> int:
     else:
         say(f"pressure   P = {pressure:.6g} Pa on {lamps}, {how}")
     length, force, moment_unit = _units(args)
+    # The keys keep their _N names for old readers; these say what the numbers are in.
+    report["units"] = {"length": length, "force": force, "moment": moment_unit, "pressure": "Pa"}
     k = 1e3 if args.info is None else 1.0  # the built-in specimen's lengths are shown in mm
     shown = "mm" if args.info is None else length
     say(
