@@ -783,8 +783,26 @@ def _enclosing(c: np.ndarray, r: np.ndarray, cells_per_diameter, rotation, probe
         raise
 
 
+def _warn_fines(radii: np.ndarray, grid: LampGrid, criterion) -> None:
+    """Warn where the area criterion may give particles no load: it splits a cell's area among the spheres that
+    the rays at the cell's corners meet, so a sphere narrower than a cell can fall between those rays and get
+    nothing (criteria 0 and 1 sample it instead: right on average over positions)."""
+    if criterion != "area" or len(radii) == 0:
+        return
+    h = float(np.min(grid.cell))
+    fines = int(np.count_nonzero(2.0 * radii < h))
+    if fines:
+        warnings.warn(
+            f"criterion 'area': {fines:,} particle{'s' if fines > 1 else ''} narrower than a cell ({h:.4g}; "
+            f"smallest diameter {2.0 * float(radii.min()):.4g}) may fall between the cells' corner rays and get no "
+            "load; use more cells per diameter (cells under the smallest diameter) or criterion 1 for such fines",
+            stacklevel=3,
+        )
+
+
 def _host_update(c, r, mask, grid: LampGrid, options: LampOptions, device, *, weight: float = 1.0) -> ShiningLamp:
     """One update on checked host data: positions moved into the grid's frame in float64, then cast."""
+    _warn_fines(r, grid, options.criterion)
     n = c.shape[0]
     if options.walls is not None:
         visible = c if mask is None else c[np.asarray(mask) != 0]

@@ -404,8 +404,13 @@ def check_box(lower, upper) -> tuple[np.ndarray, np.ndarray]:
 
 def check_shape(shape) -> tuple[int, int, int]:
     """Three integers >= 1 (cells along x, y, z)."""
-    sh = np.asarray(host_array(shape)).reshape(-1)
-    if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
+    value = host_array(shape)
+    # np.asarray((True, 4, 4)) is an integer array: a bool among the entries is caught before it is promoted.
+    flagged = isinstance(value, (bool, np.bool_)) or (
+        isinstance(value, (tuple, list)) and any(isinstance(x, (bool, np.bool_)) for x in value)
+    )
+    sh = np.asarray(value).reshape(-1)
+    if flagged or sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
         raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {format_value(shape)}")
     if np.any(sh < 1):
         k = int(np.flatnonzero(sh < 1)[0])
