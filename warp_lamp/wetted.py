@@ -481,6 +481,7 @@ class WettedSurface:
         box.diag = voxel_diagonal(self.h)
         box.near_list = K.NEAR_LIST
         box.prune_from = K.PRUNE_FROM
+        box.gather = K.GATHER
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]

@@ -67,6 +67,10 @@ PRUNE_FROM = 0
 DEEP = 8
 DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
 DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
+#: Spheres a point's exact test gathers once, for all its candidates' blocker and segment searches: those within
+#: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
+GATHER = 128
+GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
 #: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
@@ -94,6 +98,7 @@ class WetBox:
     diag: wp.float64  # voxel diagonal sqrt(hx^2 + hy^2 + hz^2) [m]
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
+    gather: wp.int32  # spheres the exact test gathers for its candidates' searches, <= GATHER (tests lower it)
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
@@ -1377,6 +1382,149 @@ def candidate_check(
 
 
 @wp.func
+def candidate_check_list(
+    x: wp.vec3d,
+    z: wp.vec3d,
+    i: wp.int32,
+    j: wp.int32,
+    k: wp.int32,
+    hint: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+    gathered: GatherIds,
+    ng: wp.int32,
+) -> wp.int32:
+    """``candidate_check`` for z within rho of x, its blocker and segment searches over the spheres ``gather_near``
+    collected around x (``ng`` of them; -1: too many, so the bins are walked). The same answer and the same blocker:
+    the list holds, in the bins' order, every sphere of the bins that the walks visit that can hold z (centre within
+    r + 2 rho of x) or cut a segment from z to a corner of its voxel-centre cube (within r + 2 rho + diagonal) and
+    only the spheres beyond, which can do neither. A corner clamped to the box's surroundings may lie farther from
+    z: then the segments walk the bins."""
+    if ng < 0:
+        return candidate_check(x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    if hint >= 0:
+        if not defining(hint, i, j, k, positions, radii):
+            if inside_inflated(z, hint, positions, radii, box):
+                return hint
+    if not walls_allow(z, i, j, k, walls, box.rho):
+        return -1
+    for t in range(ng):
+        q = gathered[t]
+        if not defining(q, i, j, k, positions, radii):
+            if inside_inflated(z, q, positions, radii, box):
+                return q
+    far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
+    lo = wp.vec3i(0)
+    clamped = int(0)
+    for a in range(3):
+        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
+        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        if f != u:
+            clamped = 1
+        lo[a] = wp.int32(f)
+    for corner in range(8):
+        ix = lo[0] + (corner & 1)
+        iy = lo[1] + ((corner >> 1) & 1)
+        iz = lo[2] + ((corner >> 2) & 1)
+        if reached_at(ix, iy, iz, reach, box, walls):
+            y = wp.vec3d(
+                (wp.float64(ix) + wp.float64(0.5)) * box.h[0],
+                (wp.float64(iy) + wp.float64(0.5)) * box.h[1],
+                (wp.float64(iz) + wp.float64(0.5)) * box.h[2],
+            )
+            if tangent_ok(y, z, i, positions) and tangent_ok(y, z, j, positions) and tangent_ok(y, z, k, positions):
+                if clamped != 0:
+                    if not segment_blocked(x, y, z, i, j, k, far, positions, radii, heads, next_in_bin, box):
+                        return CANDIDATE_OK
+                else:
+                    d = z - y
+                    dd = dot3(d, d)
+                    cut = int(0)
+                    for t in range(ng):
+                        q = gathered[t]
+                        if not defining(q, i, j, k, positions, radii):
+                            big = wp.float64(radii[q]) + box.rho
+                            w = y - centre_of(q, positions)
+                            s = wp.float64(0.0)
+                            if dd > wp.float64(0.0):
+                                s = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
+                            p = w + d * s
+                            if dot3(p, p) < big * big:
+                                cut = 1
+                                break
+                    if cut == 0:
+                        return CANDIDATE_OK
+    return -1
+
+
+@wp.struct
+class Gathered:
+    """``gather_near``'s answer: ``ids[:n]`` the spheres, the first ``n_near`` from the bins of ``span`` (-1 in n:
+    more than ``box.gather``)."""
+
+    ids: GatherIds
+    n: wp.int32
+    n_near: wp.int32
+
+
+@wp.func
+def gather_near(
+    x: wp.vec3d,
+    span: BinSpan,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> Gathered:
+    """The spheres whose centres lie within (r + 2 rho + diagonal)(1 + slack) of x, from the bins within
+    (rmax + 2 rho + diagonal)(1 + slack) of x: first those of the bins ``span`` (the candidates' blocker search, in
+    its walk order), then the others. Every sphere that can hold a candidate within rho of x or cut a segment from
+    it to a corner of its voxel-centre cube is among them."""
+    out = Gathered()
+    out.n = 0
+    out.n_near = 0
+    far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
+    fs = bin_span(x, far, box)
+    for part in range(2):
+        for bz in range(fs.lo[2], fs.hi[2] + 1):
+            for by in range(fs.lo[1], fs.hi[1] + 1):
+                for bx in range(fs.lo[0], fs.hi[0] + 1):
+                    inner = (
+                        bx >= span.lo[0]
+                        and bx <= span.hi[0]
+                        and by >= span.lo[1]
+                        and by <= span.hi[1]
+                        and bz >= span.lo[2]
+                        and bz <= span.hi[2]
+                    )
+                    if inner == (part == 0) and out.n >= 0:
+                        q = bin_head(bx, by, bz, box, heads)
+                        while q >= 0 and out.n >= 0:
+                            lim = (wp.float64(radii[q]) + wp.float64(2.0) * box.rho + box.diag) * (
+                                wp.float64(1.0) + SLACK
+                            )
+                            v = x - centre_of(q, positions)
+                            if dot3(v, v) <= lim * lim:
+                                if out.n < box.gather:
+                                    out.ids[out.n] = q
+                                    out.n += 1
+                                else:
+                                    out.n = -1
+                            q = next_in_bin[q]
+        if part == 0:
+            out.n_near = out.n
+    return out
+
+
+@wp.func
 def gate_ok(
     x: wp.vec3d, q: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
 ) -> wp.bool:
@@ -2120,14 +2268,18 @@ def probe_reaches(
     another point it is checked here."""
     rho = box.rho
     rho2 = rho * rho
+    near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
+    span = bin_span(x, near, box)
+    # The spheres every candidate's searches visit, gathered once (the walks repeated them per candidate).
+    g = gather_near(x, span, rmax, positions, radii, heads, next_in_bin, box)
     if lattice == 0:
         for wi in range(walls.n):
             if plane_value(walls.frame[wi], x) < wp.float64(0.0):
                 return False
-        span = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
-        for bz in range(span.lo[2], span.hi[2] + 1):
-            for by in range(span.lo[1], span.hi[1] + 1):
-                for bx in range(span.lo[0], span.hi[0] + 1):
+        sspan = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
+        for bz in range(sspan.lo[2], sspan.hi[2] + 1):
+            for by in range(sspan.lo[1], sspan.hi[1] + 1):
+                for bx in range(sspan.lo[0], sspan.hi[0] + 1):
                     q = bin_head(bx, by, bz, box, heads)
                     while q >= 0:
                         r = wp.float64(radii[q])
@@ -2136,12 +2288,12 @@ def probe_reaches(
                             return False
                         q = next_in_bin[q]
         if (
-            candidate_check(x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+            candidate_check_list(
+                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+            )
             == CANDIDATE_OK
         ):
             return True
-    near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
-    span = bin_span(x, near, box)
     # The exposed spheres near x, less those whose cap within rho of x another sphere's inflated ball covers:
     # first the DEEP balls that hold x deepest (they cover most), then the listed ones. With more near than the
     # list holds (``box.near_list``), a second walk keeps only those the deep balls leave; with more of those, the
@@ -2152,44 +2304,76 @@ def probe_reaches(
     top = DeepIds()
     depth = DeepDepths()
     ntop = int(0)
-    for bz in range(span.lo[2], span.hi[2] + 1):
-        for by in range(span.lo[1], span.hi[1] + 1):
-            for bx in range(span.lo[0], span.hi[0] + 1):
-                i = bin_head(bx, by, bz, box, heads)
-                while i >= 0:
-                    big = wp.float64(radii[i]) + rho
-                    v = x - centre_of(i, positions)
-                    d2 = dot3(v, v)
-                    if d2 < big * big:
-                        dep = big - wp.sqrt(d2)
-                        if ntop < DEEP or dep > depth[DEEP - 1]:
-                            slot = wp.min(ntop, DEEP - 1)
-                            if ntop < DEEP:
-                                ntop += 1
-                            while slot > 0 and depth[slot - 1] < dep:
-                                depth[slot] = depth[slot - 1]
-                                top[slot] = top[slot - 1]
-                                slot -= 1
-                            depth[slot] = dep
-                            top[slot] = i
-                    if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
-                        if cnt < limit:
-                            ids[cnt] = i
-                        cnt += 1
-                    i = next_in_bin[i]
-    if cnt > limit:
-        cnt = int(0)
+    if g.n >= 0:
+        for t in range(g.n_near):
+            i = g.ids[t]
+            big = wp.float64(radii[i]) + rho
+            v = x - centre_of(i, positions)
+            d2 = dot3(v, v)
+            if d2 < big * big:
+                dep = big - wp.sqrt(d2)
+                if ntop < DEEP or dep > depth[DEEP - 1]:
+                    slot = wp.min(ntop, DEEP - 1)
+                    if ntop < DEEP:
+                        ntop += 1
+                    while slot > 0 and depth[slot - 1] < dep:
+                        depth[slot] = depth[slot - 1]
+                        top[slot] = top[slot - 1]
+                        slot -= 1
+                    depth[slot] = dep
+                    top[slot] = i
+            if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                if cnt < limit:
+                    ids[cnt] = i
+                cnt += 1
+    else:
         for bz in range(span.lo[2], span.hi[2] + 1):
             for by in range(span.lo[1], span.hi[1] + 1):
                 for bx in range(span.lo[0], span.hi[0] + 1):
                     i = bin_head(bx, by, bz, box, heads)
                     while i >= 0:
+                        big = wp.float64(radii[i]) + rho
+                        v = x - centre_of(i, positions)
+                        d2 = dot3(v, v)
+                        if d2 < big * big:
+                            dep = big - wp.sqrt(d2)
+                            if ntop < DEEP or dep > depth[DEEP - 1]:
+                                slot = wp.min(ntop, DEEP - 1)
+                                if ntop < DEEP:
+                                    ntop += 1
+                                while slot > 0 and depth[slot - 1] < dep:
+                                    depth[slot] = depth[slot - 1]
+                                    top[slot] = top[slot - 1]
+                                    slot -= 1
+                                depth[slot] = dep
+                                top[slot] = i
                         if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
-                            if not covered_by_deep(x, i, top, ntop, positions, radii, box):
-                                if cnt < limit:
-                                    ids[cnt] = i
-                                cnt += 1
+                            if cnt < limit:
+                                ids[cnt] = i
+                            cnt += 1
                         i = next_in_bin[i]
+    if cnt > limit:
+        cnt = int(0)
+        if g.n >= 0:
+            for t in range(g.n_near):
+                i = g.ids[t]
+                if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                    if not covered_by_deep(x, i, top, ntop, positions, radii, box):
+                        if cnt < limit:
+                            ids[cnt] = i
+                        cnt += 1
+        else:
+            for bz in range(span.lo[2], span.hi[2] + 1):
+                for by in range(span.lo[1], span.hi[1] + 1):
+                    for bx in range(span.lo[0], span.hi[0] + 1):
+                        i = bin_head(bx, by, bz, box, heads)
+                        while i >= 0:
+                            if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
+                                if not covered_by_deep(x, i, top, ntop, positions, radii, box):
+                                    if cnt < limit:
+                                        ids[cnt] = i
+                                    cnt += 1
+                            i = next_in_bin[i]
         if cnt > limit:
             if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                 return True
@@ -2235,8 +2419,8 @@ def probe_reaches(
             z = c + v * ((wp.float64(radii[i]) + rho) / wp.sqrt(d2))
             w = x - z
             if dot3(w, w) <= rho2:
-                res = candidate_check(
-                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                res = candidate_check_list(
+                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                 )
                 if res == CANDIDATE_OK:
                     return True
@@ -2257,8 +2441,8 @@ def probe_reaches(
                 w = x - z
                 e2 = dot3(w, w)
                 if e2 <= rho2:
-                    res = candidate_check(
-                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls
+                    res = candidate_check_list(
+                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                     )
                     if res == CANDIDATE_OK:
                         return True
@@ -2273,7 +2457,7 @@ def probe_reaches(
                                 z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                                 w = x - z
                                 if dot3(w, w) <= rho2:
-                                    res = candidate_check(
+                                    res = candidate_check_list(
                                         x,
                                         z,
                                         i,
@@ -2288,6 +2472,8 @@ def probe_reaches(
                                         reach,
                                         box,
                                         walls,
+                                        g.ids,
+                                        g.n,
                                     )
                                     if res == CANDIDATE_OK:
                                         return True
