@@ -482,6 +482,7 @@ class WettedSurface:
         box.near_list = K.NEAR_LIST
         box.prune_from = K.PRUNE_FROM
         box.gather = K.GATHER
+        box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]

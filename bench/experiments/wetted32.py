@@ -65,6 +65,72 @@ def hashes(args):
         json.dump({"device": str(device), "name": getattr(device, "name", ""), "rows": rows}, f, indent=1)
 
 
+#: (label, WetBox.skip, WetBox.gather or None for the default): the exact test's parts, timed by what skipping
+#: them saves (answers wrong except in the first and last rows).
+PROFILE = (
+    ("whole exact test", 0, None),
+    ("no vertex candidates", 1, None),
+    ("no edge or vertex candidates", 3, None),
+    ("no candidates (neighbour walk and pruning)", 16, None),
+    ("neighbour walk only", 8, None),
+    ("bins walked per candidate (no gather)", 0, 0),
+)
+
+
+def profile(args):
+    """The classify stage (exposure, the exact tests) with parts of the exact test skipped, on the specimen and
+    the slot block at rho = r-bar: graph replay on CUDA, thread time on the CPU (best of the repeats)."""
+    import time
+
+    import warp as wp
+
+    import warp_lamp as wl
+    from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
+    from warp_lamp.timing import time_median_events
+    from warp_lamp.wetted import WettedSurface
+
+    wp.config.log_level = wp.LOG_WARNING
+    wp.init()
+    device = wp.get_device(args.device)
+    scenes = (
+        [("small lattice", scene_lattice_box(8))]
+        if args.quick
+        else [("specimen", scene_sphere_specimen()), ("slot", scene_slot_block())]
+    )
+    rows = []
+    for name, sc in scenes:
+        rho = float(sc.radii.mean())
+        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=2.0 * rho + rho)
+        pos = wp.array((sc.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
+        rad = wp.array(sc.radii.astype(np.float32), dtype=wp.float32, device=device)
+        surf = WettedSurface(grid, probe_radius=rho, device=device)
+        surf.update(pos, rad)
+        gather0 = surf._box.gather
+
+        def timed(stop):
+            if device.is_cuda:
+                with wp.ScopedCapture(device=device) as cap:
+                    surf._update(pos, rad, None, stop=stop)
+                return time_median_events(lambda: wp.capture_launch(cap.graph), device, repeats=args.repeats)
+            best = float("inf")
+            for _ in range(args.repeats):
+                t = time.thread_time()
+                surf._update(pos, rad, None, stop=stop)
+                best = min(best, time.thread_time() - t)
+            return best
+
+        base = timed("dilate")
+        for label, skip, gather in PROFILE:
+            surf._box.skip = skip
+            surf._box.gather = gather0 if gather is None else gather
+            t = timed("classify") - base
+            rows.append(dict(scene=name, part=label, skip=skip, gather=surf._box.gather, classify_s=t))
+            print(f"{name:14s} {label:44s} classify {t * 1e3:8.3f} ms", flush=True)
+        surf._box.skip, surf._box.gather = 0, gather0
+    with open(args.out, "w") as f:
+        json.dump({"device": str(device), "name": getattr(device, "name", ""), "rows": rows}, f, indent=1)
+
+
 def _load(path):
     try:
         with open(path) as f:
@@ -77,7 +143,11 @@ def _load(path):
 def combine(args):
     bb, ab = _load(args.before_bench), _load(args.after_bench)
     bh, ah = _load(args.before_hashes), _load(args.after_hashes)
+    pr = _load(args.profile) if args.profile else None
     result = {"issue": 32, "before_bench": bb, "after_bench": ab, "before_hashes": bh, "after_hashes": ah}
+    result["profile"] = pr
+    rk = _load(args.rockcut) if args.rockcut else None
+    result["rockcut"] = rk
     same = None
     if bh and ah:
         hb = {r["case"]: r["hash"] for r in bh["rows"]}
@@ -102,6 +172,15 @@ def combine(args):
                 print(f"{r['scene'][:10]:10s} {r['rho_over_d']:5.2f} {tag:6s} {tot * 1e3:8.3f} {st}")
             if a is not None:
                 print(f"{'':10s} {'':5s} hash   {'same' if r['fluid_hash'] == a['fluid_hash'] else 'DIFFERENT'}")
+    if pr:
+        print("classify stage with parts of the exact test skipped (after; rho = r-bar):")
+        for r in pr["rows"]:
+            print(f"  {r['scene']:14s} {r['part']:44s} {r['classify_s'] * 1e3:8.3f} ms")
+    if rk:
+        print("rock cut's slab on its lamp grid (after), per update:")
+        for r in rk["rows"]:
+            st = " ".join(f"{k[:-2]} {v * 1e3:.3f}" for k, v in r.items() if k.endswith("_s"))
+            print(f"  debris {r['debris']:.2f}, {r['tested']} tested, {r['rounds']} rounds: {st} ms")
     if same is not None:
         print(
             f"bitwise cases: {sum(same.values())} of {len(same)} equal"
@@ -116,11 +195,18 @@ def main():
     h.add_argument("--device", default=None)
     h.add_argument("--quick", action="store_true")
     h.add_argument("--out", required=True)
+    p = sub.add_parser("profile")
+    p.add_argument("--device", default=None)
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--out", required=True)
     c = sub.add_parser("combine")
     for k in ("before-bench", "after-bench", "before-hashes", "after-hashes", "out"):
         c.add_argument(f"--{k}", required=True)
+    c.add_argument("--profile", default=None)
+    c.add_argument("--rockcut", default=None)
     args = ap.parse_args()
-    hashes(args) if args.cmd == "hashes" else combine(args)
+    {"hashes": hashes, "profile": profile, "combine": combine}[args.cmd](args)
 
 
 if __name__ == "__main__":

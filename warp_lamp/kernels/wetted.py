@@ -67,6 +67,9 @@ PRUNE_FROM = 0
 DEEP = 8
 DeepIds = wp.types.vector(length=DEEP, dtype=wp.int32)
 DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
+#: ``WetBox.skip`` bits, for benchmarks only (they make answers wrong): the exact test skips vertex candidates (1),
+#: edge candidates and their vertices (2), face candidates (4), stops before its pruning (8) or after it (16).
+SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 8, 16
 #: Spheres a point's exact test gathers once, for all its candidates' blocker and segment searches: those within
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
@@ -99,6 +102,7 @@ class WetBox:
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
     gather: wp.int32  # spheres the exact test gathers for its candidates' searches, <= GATHER (tests lower it)
+    skip: wp.int32  # 0; benchmarks only (wrong answers, for timing the exact test's parts): SKIP_* bits
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
@@ -2380,6 +2384,8 @@ def probe_reaches(
             return wall_search(
                 x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
             )
+    if (box.skip & 8) != 0:
+        return False
     kept = wp.uint64(0)
     for a in range(cnt):
         covered = int(0)
@@ -2409,8 +2415,10 @@ def probe_reaches(
             b -= 1
         ids[b + 1] = key
     hint = int(-1)
+    if (box.skip & 16) != 0:
+        return False
     # Faces: the commonest answer, so first.
-    for a in range(cnt):
+    for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
         i = ids[a]
         c = centre_of(i, positions)
         v = x - c
@@ -2431,7 +2439,7 @@ def probe_reaches(
         i = ids[a]
         ci = centre_of(i, positions)
         big_i = wp.float64(radii[i]) + rho
-        for b in range(a + 1, cnt):
+        for b in range(a + 1, cnt * wp.where((box.skip & 2) != 0, 0, 1)):
             j = ids[b]
             cj = centre_of(j, positions)
             big_j = wp.float64(radii[j]) + rho
@@ -2448,7 +2456,7 @@ def probe_reaches(
                         return True
                     if res >= 0:
                         hint = res
-                if e2 <= rho2 * (wp.float64(1.0) + SLACK):
+                if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
                     for e in range(b + 1, cnt):
                         k = ids[e]
                         vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
