@@ -147,7 +147,8 @@ def combine(args):
     result = {"issue": 32, "before_bench": bb, "after_bench": ab, "before_hashes": bh, "after_hashes": ah}
     result["profile"] = pr
     rk = _load(args.rockcut) if args.rockcut else None
-    result["rockcut"] = rk
+    brk = _load(args.before_rockcut) if args.before_rockcut else None
+    result["rockcut"], result["before_rockcut"] = rk, brk
     same = None
     if bh and ah:
         hb = {r["case"]: r["hash"] for r in bh["rows"]}
@@ -176,9 +177,18 @@ def combine(args):
         print("classify stage with parts of the exact test skipped (after; rho = r-bar):")
         for r in pr["rows"]:
             print(f"  {r['scene']:14s} {r['part']:44s} {r['classify_s'] * 1e3:8.3f} ms")
-    if rk:
-        print("rock cut's slab on its lamp grid (after), per update:")
-        for r in rk["rows"]:
+    if brk and rk:
+        same = dict(same or {})
+        for a, b in zip(brk["rows"], rk["rows"], strict=False):
+            same[f"rock cut slab, debris {a['debris']:.2f}"] = a.get("hash") == b.get("hash")
+        result["bitwise"] = same
+        with open(args.out, "w") as f:
+            json.dump(result, f, indent=1)
+    for tag, data in (("before", brk), ("after", rk)):
+        if not data:
+            continue
+        print(f"rock cut's slab on its lamp grid ({tag}), per update:")
+        for r in data["rows"]:
             st = " ".join(f"{k[:-2]} {v * 1e3:.3f}" for k, v in r.items() if k.endswith("_s"))
             print(f"  debris {r['debris']:.2f}, {r['tested']} tested, {r['rounds']} rounds: {st} ms")
     if same is not None:
@@ -205,6 +215,7 @@ def main():
         c.add_argument(f"--{k}", required=True)
     c.add_argument("--profile", default=None)
     c.add_argument("--rockcut", default=None)
+    c.add_argument("--before-rockcut", default=None)
     args = ap.parse_args()
     {"hashes": hashes, "profile": profile, "combine": combine}[args.cmd](args)
 

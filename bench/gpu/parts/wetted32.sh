@@ -3,7 +3,7 @@
 # and after (this tree) on one card in one run: graph replay per stage (SphereTest specimen, slot block, 1M lattice
 # at cell 0.25; rho = r-bar), bitwise hashes of fluid maps, rays and counts on the bench and test scenes; after
 # only: the classify stage with parts of the exact test skipped (where its time goes), the CUDA wetted and walls
-# tests, the rock cut's slab on its lamp grid stage by stage. Into $OUT/wetted32.json and $OUT/wetted32.log; the
+# tests; before and after: the rock cut's slab on its lamp grid, stage by stage. Into $OUT/wetted32.json and $OUT/wetted32.log; the
 # table last. About 6-7 minutes on an H100, two compiles of the wetted module (about 1 minute each) included.
 LOG="$OUT/wetted32.log"
 : >"$LOG"
@@ -28,23 +28,18 @@ if [ -n "$BASE" ]; then
   run "before: bench" "$BASE" 150 python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 \
     --repeats 20 --out $T/before_bench.json
   run "before: hashes" "$BASE" 45 python3 bench/experiments/wetted32.py hashes --device cuda:0 --out $T/before_hashes.json
+  run "before: rock cut slab, stages" "$BASE" 40 python3 bench/experiments/rockcut_wetted_profile.py --device cuda:0 \
+    --out $T/before_rockcut.json
 fi
 run "after: bench" "$NOW" 150 python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 \
   --repeats 20 --out $T/after_bench.json
 run "after: hashes" "$NOW" 45 python3 bench/experiments/wetted32.py hashes --device cuda:0 --out $T/after_hashes.json
 run "after: exact test's parts" "$NOW" 40 python3 bench/experiments/wetted32.py profile --device cuda:0 --repeats 20 \
   --out $T/profile.json
-run "after: CUDA wetted and walls tests" "$NOW" 100 python3 -m pytest -q -x -p no:cacheprovider -rfEs -k cuda \
-  tests/test_wetted.py tests/test_walls.py
-run "after: rock cut slab, stages" "$NOW" 60 python3 bench/experiments/rockcut_wetted_profile.py --device cuda:0 \
+run "after: rock cut slab, stages" "$NOW" 40 python3 bench/experiments/rockcut_wetted_profile.py --device cuda:0 \
   --out $T/rockcut.json
-PYTHONPATH="$NOW" python3 - "$T/rockcut.json" <<'PY' >>"$LOG" 2>&1
-import json, sys
-try:
-    print(json.dumps(json.load(open(sys.argv[1])), indent=1))
-except Exception as e:  # the run above timed out or failed: its log says why
-    print("rock cut profile: none", e)
-PY
+run "after: CUDA wetted and walls tests" "$NOW" 120 python3 -m pytest -q -x -p no:cacheprovider -rfEs -k cuda \
+  tests/test_wetted.py tests/test_walls.py
 PYTHONPATH="$NOW" python3 bench/experiments/wetted32.py combine --before-bench $T/before_bench.json \
   --after-bench $T/after_bench.json --before-hashes $T/before_hashes.json --after-hashes $T/after_hashes.json \
-  --profile $T/profile.json --rockcut $T/rockcut.json --out "$OUT/wetted32.json" 2>&1 | tee -a "$LOG"
+  --profile $T/profile.json --before-rockcut $T/before_rockcut.json --rockcut $T/rockcut.json --out "$OUT/wetted32.json" 2>&1 | tee -a "$LOG"
