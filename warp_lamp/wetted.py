@@ -51,6 +51,9 @@ import warp as wp
 from warp_lamp.frames import pressure_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import wetted as K
+from warp_lamp.kernels import wetted_base as KB
+from warp_lamp.kernels import wetted_cross as KC
+from warp_lamp.kernels import wetted_sweeps as KS
 from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
@@ -242,7 +245,7 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     # Wall runs along x are walked exactly this far past the box: beyond every index a kernel asks about (a word's
     # padding, a dilation's reach, a candidate's cube corner).
     pad = int(max(table_band.max(), table_band.shape[0], table_band.shape[1])) + 64
-    small = 4 * (table.size + table_band.size) + 4 * (K.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
+    small = 4 * (table.size + table_band.size) + 4 * (KB.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
     # Segments of about sqrt(n) rows: summary, carry and apply threads then each walk ~2 sqrt(n) words.
     seg = [0] + [max(4, round(float(np.sqrt(float(n[a]))))) for a in (1, 2)]
     n_seg = [0] + [-(-int(n[a]) // seg[a]) for a in (1, 2)]
@@ -472,16 +475,16 @@ class WettedSurface:
         self.h = lay["h"]
         self.table = lay["table"]
         self.table_band = lay["table_band"]
-        box = K.WetBox()
+        box = KB.WetBox()
         box.n = wp.vec3i(*self.shape)
         box.nwx = lay["nwx"]
         box.n_words = lay["n_words"]
         box.h = wp.vec3d(*self.h)
         box.rho = self.probe_radius
         box.diag = voxel_diagonal(self.h)
-        box.near_list = K.NEAR_LIST
-        box.prune_from = K.PRUNE_FROM
-        box.gather = K.GATHER
+        box.near_list = KB.NEAR_LIST
+        box.prune_from = KB.PRUNE_FROM
+        box.gather = KB.GATHER
         box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
@@ -520,7 +523,7 @@ class WettedSurface:
         self.thin_faces = wp.zeros(sum(self._faces) if keep_owners else 0, dtype=wp.int32, device=d)
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
-        self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
+        self.diag = wp.zeros(KB.N_DIAG, dtype=wp.int32, device=d)
         # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
         # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
         # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
@@ -599,8 +602,8 @@ class WettedSurface:
         ny, nz = self.shape[1], self.shape[2]
         nw = box.n_words
         wp.launch(
-            K.wet_clear,
-            dim=max(n, K.N_DIAG, 1),
+            KS.wet_clear,
+            dim=max(n, KB.N_DIAG, 1),
             inputs=[n],
             outputs=[self.counts, self.hits, self.diag, self.rmax, self.cond, self.wall_counts],
             device=d,
@@ -617,7 +620,7 @@ class WettedSurface:
             # Enough threads to fill a GPU: a small body gets up to 8 per sphere, one per few z layers.
             slices = self._slices or self._auto_slices(n)
             wp.launch(
-                K.wet_rasterize,
+                KS.wet_rasterize,
                 dim=n * slices,
                 inputs=[positions, radii, active, box, slices],
                 outputs=[self.blocked, self.solid, self.heads, self.next_in_bin, self.rmax, self.diag],
@@ -625,46 +628,50 @@ class WettedSurface:
             )
         if self.n_walls:
             wp.launch(
-                K.wet_rasterize_walls, dim=ny * nz, inputs=[box, walls], outputs=[self.blocked, self.solid], device=d
+                KS.wet_rasterize_walls, dim=ny * nz, inputs=[box, walls], outputs=[self.blocked, self.solid], device=d
             )
 
         def round_body():
             wp.launch(
-                K.wet_sweep_x, dim=ny * nz, inputs=[box, walls, self.blocked, self.cond], outputs=[self.reach], device=d
+                KS.wet_sweep_x,
+                dim=ny * nz,
+                inputs=[box, walls, self.blocked, self.cond],
+                outputs=[self.reach],
+                device=d,
             )
             for axis in (1, 2):
                 seg, n_seg, cols = self._seg[axis], self._n_seg[axis], self._columns[axis]
                 segs = [self.seg_pass, self.seg_up, self.seg_down]
                 wp.launch(
-                    K.wet_scan_summary,
+                    KS.wet_scan_summary,
                     dim=cols * n_seg,
                     inputs=[box, axis, seg, n_seg, self.blocked, self.reach, self.cond],
                     outputs=segs,
                     device=d,
                 )
                 wp.launch(
-                    K.wet_scan_carry,
+                    KS.wet_scan_carry,
                     dim=cols,
                     inputs=[box, axis, walls, n_seg, self.seg_pass, self.cond],
                     outputs=segs[1:],
                     device=d,
                 )
                 wp.launch(
-                    K.wet_scan_apply,
+                    KS.wet_scan_apply,
                     dim=cols * n_seg,
                     inputs=[box, axis, seg, n_seg, self.blocked, self.seg_up, self.seg_down, self.cond],
                     outputs=[self.reach],
                     device=d,
                 )
             wp.launch(
-                K.wet_frontier,
+                KS.wet_frontier,
                 dim=nw,
                 inputs=[box, walls, self.blocked, self.reach, self.cond],
                 outputs=[self.frontier],
                 device=d,
             )
             wp.launch(
-                K.wet_round_end,
+                KS.wet_round_end,
                 dim=1,
                 inputs=[self.max_rounds],
                 outputs=[self.frontier, self.cond, self.diag, self.nonconverged_total],
@@ -687,9 +694,9 @@ class WettedSurface:
         ):
             wy, wz = dims[0] - 1, dims[1] - 1
             wp.launch(
-                K.wet_dilate_y, dim=nw, inputs=[box, walls, wy, wz, self.reach, table], outputs=[self.planes], device=d
+                KS.wet_dilate_y, dim=nw, inputs=[box, walls, wy, wz, self.reach, table], outputs=[self.planes], device=d
             )
-            wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
+            wp.launch(KS.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
         if last < 3:
             return
         if n > 0:
@@ -748,7 +755,7 @@ class WettedSurface:
         per_word = 32 // self._bits
         first = wp.vec3i(0, self._face_words[0] * per_word, (self._face_words[0] + self._face_words[1]) * per_word)
         wp.launch(
-            K.wet_cross,
+            KC.wet_cross,
             dim=sum(self._face_words) * per_word,
             inputs=[
                 positions,
@@ -825,16 +832,16 @@ class WettedSurface:
             band=unpack_bits(self.band.numpy(), self.shape),
             crossings=crossings,
             loaded=loaded,
-            invalid=int(diag[K.DIAG_INVALID]),
-            outside=int(diag[K.DIAG_OUTSIDE]),
-            tight=int(diag[K.DIAG_TIGHT]),
-            unattributed=int(diag[K.DIAG_UNATTRIBUTED]),
-            uncertain=int(diag[K.DIAG_UNCERTAIN]),
-            rescued=int(diag[K.DIAG_RESCUED]),
-            thin=int(diag[K.DIAG_THIN]),
-            gap_tests=int(diag[K.DIAG_GAPS]),
-            rounds=int(diag[K.DIAG_ROUNDS]),
-            nonconverged=bool(diag[K.DIAG_NONCONVERGED]),
+            invalid=int(diag[KB.DIAG_INVALID]),
+            outside=int(diag[KB.DIAG_OUTSIDE]),
+            tight=int(diag[KB.DIAG_TIGHT]),
+            unattributed=int(diag[KB.DIAG_UNATTRIBUTED]),
+            uncertain=int(diag[KB.DIAG_UNCERTAIN]),
+            rescued=int(diag[KB.DIAG_RESCUED]),
+            thin=int(diag[KB.DIAG_THIN]),
+            gap_tests=int(diag[KB.DIAG_GAPS]),
+            rounds=int(diag[KB.DIAG_ROUNDS]),
+            nonconverged=bool(diag[KB.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
         )
@@ -849,9 +856,9 @@ class WettedSurface:
                     block = src[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
                     dst[a] = block.transpose(1, 0, 2).copy()
                 start += self._faces[a]
-                walled = out.owners[a] <= K.WALL_OWNER
-                out.wall_owners[a] = np.where(walled, K.WALL_OWNER - out.owners[a], -1)
-                out.owners[a][walled] = K.WALL_OWNER
+                walled = out.owners[a] <= KB.WALL_OWNER
+                out.wall_owners[a] = np.where(walled, KB.WALL_OWNER - out.owners[a], -1)
+                out.owners[a][walled] = KB.WALL_OWNER
         if pressure is not None:
             out.force = (counts * pressure_area(pressure, g)).sum(axis=0)
             out.wall_forces = out.wall_counts * pressure_area(pressure, g)
