@@ -149,6 +149,8 @@ def combine(args):
     rk = _load(args.rockcut) if args.rockcut else None
     brk = _load(args.before_rockcut) if args.before_rockcut else None
     result["rockcut"], result["before_rockcut"] = rk, brk
+    share = _load(args.share) if args.share else None
+    result["rockcut_share"] = share
     same = None
     if bh and ah:
         hb = {r["case"]: r["hash"] for r in bh["rows"]}
@@ -158,20 +160,20 @@ def combine(args):
     with open(args.out, "w") as f:
         json.dump(result, f, indent=1)
     print("== issue 32: wetted surface before (4149365) and after, same card, graph replay ==")
-    if bb and ab:
+    if ab:
         print(f"device: {ab.get('name', '')} ({ab.get('device')})")
         stages = ["rasterize", "connect", "dilate", "classify", "cross", "thin"]
         print(f"{'scene':10s} {'rho/d':>5s} {'':6s} {'total':>8s} " + " ".join(f"{s[:8]:>8s}" for s in stages))
         after = {(r["scene"], r["rho_over_d"]): r for r in ab["rows"]}
-        for r in bb["rows"]:
+        for r in (bb or {"rows": []})["rows"] or ab["rows"]:
             a = after.get((r["scene"], r["rho_over_d"]))
-            for tag, row in (("before", r), ("after", a)):
+            for tag, row in (("before", r if bb else None), ("after", a)):
                 if row is None or ("all_replay_s" not in row and "all_eager_s" not in row):
                     continue
                 tot = row.get("all_replay_s", row.get("all_eager_s"))
                 st = " ".join(f"{row.get(f'all_{s}_s', float('nan')) * 1e3:8.3f}" for s in stages)
                 print(f"{r['scene'][:10]:10s} {r['rho_over_d']:5.2f} {tag:6s} {tot * 1e3:8.3f} {st}")
-            if a is not None:
+            if a is not None and bb:
                 print(f"{'':10s} {'':5s} hash   {'same' if r['fluid_hash'] == a['fluid_hash'] else 'DIFFERENT'}")
     if pr:
         print("classify stage with parts of the exact test skipped (after; rho = r-bar):")
@@ -191,6 +193,14 @@ def combine(args):
         for r in data["rows"]:
             st = " ".join(f"{k[:-2]} {v * 1e3:.3f}" for k, v in r.items() if k.endswith("_s"))
             print(f"  debris {r['debris']:.2f}, {r['tested']} tested, {r['rounds']} rounds: {st} ms")
+    if share:
+        for mode in ("first", "all"):
+            t = share.get(mode)
+            if t:
+                print(
+                    f"rock cut cycle ({mode}, after): {t['cycle_s'] * 1e6:.1f} us, without the lamp "
+                    f"{t['cycle_without_lamp_s'] * 1e6:.1f} us: lamp share {t['lamp_share']:.1%}"
+                )
     if same is not None:
         print(
             f"bitwise cases: {sum(same.values())} of {len(same)} equal"
@@ -216,6 +226,7 @@ def main():
     c.add_argument("--profile", default=None)
     c.add_argument("--rockcut", default=None)
     c.add_argument("--before-rockcut", default=None)
+    c.add_argument("--share", default=None)
     args = ap.parse_args()
     {"hashes": hashes, "profile": profile, "combine": combine}[args.cmd](args)
 

@@ -4,7 +4,9 @@
 # at cell 0.25; rho = r-bar), bitwise hashes of fluid maps, rays and counts on the bench and test scenes; after
 # only: the classify stage with parts of the exact test skipped (where its time goes), the CUDA wetted and walls
 # tests; before and after: the rock cut's slab on its lamp grid, stage by stage. Into $OUT/wetted32.json and $OUT/wetted32.log; the
-# table last. About 6-7 minutes on an H100, two compiles of the wetted module (about 1 minute each) included.
+# table last; last of all (after only, cut at 100 s): the rock cut's DEM cycle with and without the lamp, its share.
+# About 6-7 minutes on an H100, two compiles of the wetted modules (about 1 minute each) included, plus the DEM
+# modules' compile for the share if no earlier part compiled them.
 LOG="$OUT/wetted32.log"
 : >"$LOG"
 T=/tmp/wetted32
@@ -40,6 +42,8 @@ run "after: rock cut slab, stages" "$NOW" 40 python3 bench/experiments/rockcut_w
   --out $T/rockcut.json
 run "after: CUDA wetted and walls tests" "$NOW" 120 python3 -m pytest -q -x -p no:cacheprovider -rfEs -k cuda \
   tests/test_wetted.py tests/test_walls.py
+run "after: rock cut cycle, the lamp's share" "$NOW" 100 python3 bench/experiments/rockcut_share.py --device cuda:0 \
+  --out $T/rockcut_share.json
 PYTHONPATH="$NOW" python3 bench/experiments/wetted32.py combine --before-bench $T/before_bench.json \
   --after-bench $T/after_bench.json --before-hashes $T/before_hashes.json --after-hashes $T/after_hashes.json \
-  --profile $T/profile.json --before-rockcut $T/before_rockcut.json --rockcut $T/rockcut.json --out "$OUT/wetted32.json" 2>&1 | tee -a "$LOG"
+  --profile $T/profile.json --before-rockcut $T/before_rockcut.json --rockcut $T/rockcut.json --share $T/rockcut_share.json --out "$OUT/wetted32.json" 2>&1 | tee -a "$LOG"
