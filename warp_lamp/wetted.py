@@ -79,8 +79,9 @@ __all__ = [
     "wetted_nbytes",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
-BYTES_PER_PARTICLE = 36
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag, and
+#: its triple points (a count and ``TRI_CAP`` slots of three int32).
+BYTES_PER_PARTICLE = 36 + 4 + 12 * KB.TRI_CAP
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
@@ -344,6 +345,8 @@ class WettedDiagnostics:
         force: Resultant force on the particles [N], shape (3,), when a pressure was given.
         wall_forces: Force on each wall [N], shape (W, 3), when a pressure was given (world coordinates when the
             lamp gives it, ``ShiningLamp.diagnostics``; else the frame's).
+        triple_overflow: Spheres with more valid triple points than the once-per-update solve keeps
+            (``TRI_CAP``); the exact test solves their triples itself (the same answer, slower).
     """
 
     counts: np.ndarray
@@ -372,6 +375,7 @@ class WettedDiagnostics:
     thin_faces: dict | None = None
     force: np.ndarray | None = None
     wall_forces: np.ndarray | None = None
+    triple_overflow: int = 0
 
 
 class WettedSurface:
@@ -536,6 +540,15 @@ class WettedSurface:
         self.hits = wp.zeros(0, dtype=wp.int32, device=d)
         self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
         self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
+        self.tri_n = wp.zeros(0, dtype=wp.int32, device=d)
+        self.tri = wp.zeros(0, dtype=wp.vec3i, device=d)
+        self._no_tri_n = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_tri = wp.empty(0, dtype=wp.vec3i, device=d)
+        # The triple points solved once per update (``wet_triples``) on CUDA, where the exact test's time is its
+        # slowest tests' and triples are most of their candidates; on the CPU, where the mean counts, solving every
+        # triple near the surface once measured slower than the few each tested voxel meets (bench/NOTES.md).
+        # Either way the same answer (tests switch it).
+        self._patches = bool(d.is_cuda)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
@@ -563,6 +576,8 @@ class WettedSurface:
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.tri_n = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.tri = wp.zeros(n * KB.TRI_CAP, dtype=wp.vec3i, device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -707,6 +722,29 @@ class WettedSurface:
                 outputs=[self.exposed],
                 device=d,
             )
+        tri_n, tri = self._no_tri_n, self._no_tri
+        if n > 0 and self._patches:
+            tri_n, tri = self.tri_n, self.tri
+            tri_n.zero_()
+            slices = 8 if d.is_cuda else 1
+            wp.launch(
+                K.wet_triples,
+                dim=n * slices,
+                inputs=[
+                    positions,
+                    radii,
+                    box,
+                    walls,
+                    self.reach,
+                    self.heads,
+                    self.next_in_bin,
+                    self.rmax,
+                    self.exposed,
+                    slices,
+                ],
+                outputs=[tri_n, tri, self.diag],
+                device=d,
+            )
         if self._capacity > 0:
             self.queued.zero_()
         wp.launch(
@@ -726,6 +764,8 @@ class WettedSurface:
                 self.exposed,
                 self._bits,
                 self._capacity,
+                tri_n,
+                tri,
             ],
             outputs=[self.fluid, self.diag, self.queue, self.queued],
             device=d,
@@ -746,6 +786,8 @@ class WettedSurface:
                     self.exposed,
                     self.queue,
                     self.queued,
+                    tri_n,
+                    tri,
                 ],
                 outputs=[self.fluid, self.diag],
                 device=d,
@@ -789,6 +831,8 @@ class WettedSurface:
                 self.next_in_bin,
                 self.rmax,
                 self.exposed,
+                tri_n,
+                tri,
             ],
             outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
             device=d,
@@ -844,6 +888,7 @@ class WettedSurface:
             nonconverged=bool(diag[KB.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
+            triple_overflow=int(diag[KB.DIAG_TRI_OVERFLOW]),
         )
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()

@@ -17,7 +17,9 @@ from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_s
 
 STATS = {"voxels": 0, "ids": 0, "pairs": 0, "edge_pts": 0, "gated_pairs": 0, "triples": 0, "vertex_pts": 0}
 TRIPLES = set()
+PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
 VALID_TRIPLES = set()
+PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
 
 
 def fluid(self, x, lattice):
@@ -51,6 +53,9 @@ def fluid(self, x, lattice):
     w1 = R._dot(x - z1, x - z1) <= rho2
     w2 = R._dot(x - z2, x - z2) <= rho2
     STATS["vertex_pts"] += int((okv & w1).sum() + (okv & w2).sum())
+    PER_TEST.append(
+        (len(ids), len(pa), int(per.sum()), int((ok & (e2 <= rho2)).sum()), int((okv & w1).sum() + (okv & w2).sum()))
+    )
     return ORIG(self, x, lattice)
 
 
@@ -80,6 +85,14 @@ def main():
     for k, val in STATS.items():
         print(f"  {k:12s} {val:>12,}  per tested voxel {val / v:8.2f}")
     print(f"  distinct triples with points: {len(TRIPLES):,}")
+    # The GPU runs every test at once, so its time follows the slowest tests: the tail of the work per test.
+    a = np.array(PER_TEST, dtype=np.int64).reshape(-1, 5)
+    for k, name in enumerate(("spheres", "pairs", "triples tried", "edge points", "vertex points")):
+        q = np.percentile(a[:, k], [50, 90, 99, 99.9, 100])
+        print(
+            f"  per test {name:14s} median {q[0]:6.0f}  p90 {q[1]:6.0f}  p99 {q[2]:6.0f}  p99.9 {q[3]:6.0f}"
+            f"  max {q[4]:6.0f}"
+        )
 
 
 if __name__ == "__main__":
