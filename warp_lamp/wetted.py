@@ -489,6 +489,7 @@ class WettedSurface:
         box.near_list = KB.NEAR_LIST
         box.prune_from = KB.PRUNE_FROM
         box.gather = KB.GATHER
+        box.tri_cap = KB.TRI_CAP
         box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))

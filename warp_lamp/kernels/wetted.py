@@ -1024,12 +1024,14 @@ def cube_clamped(z: wp.vec3d, box: WetBox) -> wp.bool:
 
 
 @wp.func
-def triple_bits(i: wp.int32, j: wp.int32, k: wp.int32, tri_n: wp.array[wp.int32], tri: wp.array[wp.vec3i]) -> wp.int32:
+def triple_bits(
+    i: wp.int32, j: wp.int32, k: wp.int32, tri_n: wp.array[wp.int32], tri: wp.array[wp.vec3i], box: WetBox
+) -> wp.int32:
     """``wet_triples``'s verdict on the two points of triple (i, j, k): bit s (s = 0, 1) when point s is a valid
     candidate, bit 2 + s when it must be checked where it is used; 0 when neither is kept (no point, or blocked or
     unreachable)."""
     m = wp.min(tri_n[i], TRI_CAP)
-    for t in range(m):
+    for t in range(wp.min(m, box.tri_cap)):
         e = tri[i * TRI_CAP + t]
         if e[0] == j and e[1] == k:
             return e[2]
@@ -1124,9 +1126,9 @@ def wet_triples(
                                                                         hint = res
                                                             if bits != 0:
                                                                 slot = wp.atomic_add(tri_n, i, 1)
-                                                                if slot < TRI_CAP:
+                                                                if slot < box.tri_cap:
                                                                     tri[i * TRI_CAP + slot] = wp.vec3i(j, k, bits)
-                                                                elif slot == TRI_CAP:
+                                                                elif slot == box.tri_cap:
                                                                     wp.atomic_add(diag, DIAG_TRI_OVERFLOW, 1)
                                                 k = next_in_bin[k]
                             nj += 1
@@ -1348,7 +1350,7 @@ def probe_reaches(
                     # valid points (no check) and those it left to check here. Same candidates, same answers.
                     patched = tri_n.shape[0] > 0
                     if patched:
-                        patched = tri_n[i] <= TRI_CAP and balls_meet(ci, big_i, cj, big_j, TRI_COVER)
+                        patched = tri_n[i] <= box.tri_cap and balls_meet(ci, big_i, cj, big_j, TRI_COVER)
                     for e in range(b + 1, cnt):
                         k = ids[e]
                         ck = centre_of(k, positions)
@@ -1359,7 +1361,7 @@ def probe_reaches(
                             if balls_meet(ci, big_i, ck, big_k, TRI_COVER) and balls_meet(
                                 cj, big_j, ck, big_k, TRI_COVER
                             ):
-                                tb = triple_bits(i, j, k, tri_n, tri)
+                                tb = triple_bits(i, j, k, tri_n, tri, box)
                                 look = (tb | (tb >> 2)) & 3
                                 known = tb & 3
                         if look == 0:

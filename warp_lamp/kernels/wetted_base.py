@@ -82,6 +82,7 @@ class WetBox:
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
     gather: wp.int32  # spheres the exact test gathers for its candidates' searches, <= GATHER (tests lower it)
+    tri_cap: wp.int32  # triple points kept per sphere, <= TRI_CAP (tests lower it to overflow)
     skip: wp.int32  # 0; benchmarks only (wrong answers, for timing the exact test's parts): SKIP_* bits
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
