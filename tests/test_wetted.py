@@ -260,17 +260,16 @@ def test_lone_sphere_takes_exactly_criterion_1s_cells_for_every_rho(device, rng)
 
 
 def test_lone_sphere_load_converges_for_every_rho(device):
-    """The lone sphere's -x load over P pi r^2 converges to 1 as the cells shrink, for every probe radius (0 to 4
-    cells), and its RMS error over random grid offsets stays within 1.5x criterion 1's on the same grids plus 1%."""
+    """The lone sphere's -x load over P pi r^2, for every probe radius (0 to 4 cells), equals criterion 1's on the
+    same grid bitwise at every random grid offset (the fluid is the sphere's whole outside: the same cells), and
+    criterion 1's converges to 1 as the cells shrink (RMS 9.3%, 2.0%, 0.82% at 4, 8, 16 cells per diameter)."""
     result = lone_sphere_convergence(cells=(4, 8, 16), offsets=12, seed=7, device=device)
     first = {r["cells_per_diameter"]: r for r in result["rows"] if r["rho_cells"] is None}
     for row in result["rows"]:
-        if row["rho_cells"] is None:
-            continue
-        assert row["rms"] <= 1.5 * first[row["cells_per_diameter"]]["rms"] + 0.01, row
-    for k in {r["rho_cells"] for r in result["rows"]} - {None}:
-        rms = [r["rms"] for r in result["rows"] if r["rho_cells"] == k]
-        assert rms[0] > rms[1] > rms[2] and rms[2] < 0.02, (k, rms)
+        assert row["loads"] == first[row["cells_per_diameter"]]["loads"], row
+    assert len(result["rows"]) == 3 * 7
+    rms = [first[k]["rms"] for k in (4, 8, 16)]
+    assert rms[0] > rms[1] > rms[2] and rms[2] < 0.01, rms
 
 
 def test_separated_spheres_each_take_criterion_1s_cells_alone(device, rng):
