@@ -1324,7 +1324,8 @@ def enclosing_grid(
     with np.errstate(over="ignore", divide="ignore"):
         counts = np.floor((hi - lo) / h) + 1.0
     lower = lo - 0.3819660112501051 * (counts * h - (hi - lo))
-    return LampGrid(lower, lower + counts * h, h, rotation=rot, max_bytes=max_bytes)
+    # Half a cell short, as LampGrid.enclosing (the box form's ceil then gives the same counts in any unit).
+    return LampGrid(lower, lower + (counts - 0.5) * h, h, rotation=rot, max_bytes=max_bytes)
 
 
 # --- porosity -----------------------------------------------------------------------------------------------------

@@ -7,6 +7,9 @@ import warp as wp
 
 from warp_lamp.kernels.walls import LampWalls, plane_value
 
+# No kernels here, but the same options as the stages that call these functions (the project's CPU = CUDA rule).
+wp.set_module_options({"enable_backward": False, "fuse_fp": False, "max_unroll": 1})
+
 # No unrolling: the exact classification nests small constant loops (corners, pairs, axes) around deep inlined
 # calls, and unrolled they made one kernel so large that compiling the module for sm_90 took 570 s on the H100's
 # host (NVRTC through ``wp.compile_aot_module`` on the 2-core dev machine: 502 s unrolled, 57 s not). Unrolling
