@@ -970,3 +970,24 @@ def test_reference_refuses_radii_that_do_not_match_the_centres():
     shapes."""
     with pytest.raises(ValueError, match=r"radii: expected shape \(5,\) to match centers, got \(4,\)"):
         visible_area_reference(np.zeros((5, 3)), np.ones(4))
+
+
+def test_hidden_spheres_are_invisible_and_leave_the_slots():
+    """The spheres ``hidden_spheres`` finds behind one other sphere (a lattice ball's see-through columns) have no
+    visible area from that lamp by the independent exact areas, and the depth pass without them never keeps them."""
+    from warp_lamp.reference import hidden_spheres
+    from warp_lamp.scenes import scene_lattice_ball
+
+    sc = scene_lattice_ball(diameter=0.03, seed=3)
+    grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4)
+    hidden = hidden_spheres(sc.centers, sc.radii, grid, depth_slots=3, rounds=2)
+    exact = visible_area_reference(sc.centers, sc.radii)
+    assert hidden.sum() > 0.2 * hidden.size  # the columns hide many
+    assert not (exact[hidden] > 0).any()
+    keys, offsets = area_depth_slots(sc.centers, sc.radii, grid, depth_slots=3, hidden=hidden)
+    for a in range(3):
+        nu, nv = (int(x) for x in grid.counts[a])
+        for side in range(2):
+            k = keys.reshape(-1, 2, 3)[offsets[a] : offsets[a] + (nu + 1) * (nv + 1), side]
+            owners = (k[k != np.uint64(2**64 - 1)] & np.uint64(0xFFFFFFFF)).astype(np.int64)
+            assert not hidden[owners, 2 * a + side].any()
