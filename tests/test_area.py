@@ -991,3 +991,52 @@ def test_hidden_spheres_are_invisible_and_leave_the_slots():
             k = keys.reshape(-1, 2, 3)[offsets[a] : offsets[a] + (nu + 1) * (nv + 1), side]
             owners = (k[k != np.uint64(2**64 - 1)] & np.uint64(0xFFFFFFFF)).astype(np.int64)
             assert not hidden[owners, 2 * a + side].any()
+
+
+@pytest.mark.parametrize("rounds", [1, 2])
+def test_hidden_rounds_equal_the_reference_bitwise(device, rounds):
+    """The hidden-sphere rounds (flag what one key hides, rerun the depth pass without it) leave bitwise the
+    reference's keys and sub-point units on a lattice ball and a random packing, and change the keys (they act)."""
+    from warp_lamp.reference import hidden_spheres
+    from warp_lamp.scenes import scene_lattice_ball
+
+    rng = np.random.default_rng(5)
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    for c, r in ((ball.centers, ball.radii), polydisperse_scene(rng, n=150)):
+        grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+        hidden = hidden_spheres(c, r, grid, depth_slots=3, rounds=rounds)
+        want, _ = area_depth_slots(c, r, grid, depth_slots=3, hidden=hidden)
+        plain, _ = area_depth_slots(c, r, grid, depth_slots=3)
+        ref = area_estimate_reference(c, r, grid, depth_slots=3, resolver="subpoints", _hidden_rounds=rounds)
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=3, device=device)
+        lamp.estimator.hidden_rounds = rounds
+        pos, rad = device_arrays(grid.to_frame(c), r, device)
+        for _ in range(2):  # the second update starts from the first's keys
+            lamp.update(pos, rad, in_frame=True)
+            np.testing.assert_array_equal(lamp.keys.numpy(), want)
+            np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
+        assert (want != plain).any()
+        assert lamp.diagnostics().invalid == 0
+
+
+def test_both_lamps_gather_equals_the_reference_bitwise(device):
+    """Seeds gathered from both lamps' keys (with the hidden rounds) give bitwise the reference's sub-point units
+    and overflow count, on a lattice ball, and differ from the one-lamp gather (they act)."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    c, r = ball.centers, ball.radii
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(c), r, device)
+    for rounds in (0, 2):
+        ref = area_estimate_reference(
+            c, r, grid, depth_slots=3, resolver="subpoints", _cell_seeds="both", _hidden_rounds=rounds
+        )
+        one = area_estimate_reference(c, r, grid, depth_slots=3, resolver="subpoints", _hidden_rounds=rounds)
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=3, device=device)
+        lamp.estimator.gather_both = True
+        lamp.estimator.hidden_rounds = rounds
+        lamp.update(pos, rad, in_frame=True)
+        np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
+        assert lamp.diagnostics().area_overflow == ref.stats["overflow"]
+        assert (ref.units != one.units).any()

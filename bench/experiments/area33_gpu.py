@@ -29,8 +29,6 @@ from warp_lamp.scenes import scene_lattice_box, scene_sphere_specimen
 from warp_lamp.timing import run_header, time_median_events
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "bench" / "experiments"))
-from area_stages import stages  # noqa: E402
 
 #: (label, lamp options, cells per diameter) on the specimen.
 SPECIMEN_ROWS = (
@@ -40,17 +38,54 @@ SPECIMEN_ROWS = (
     ("area sub-points S8 D3", {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}, 3),
     ("area sub-points S8 D3", {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}, 4),
     ("area exact D4", {"criterion": "area", "resolver": "exact", "depth_slots": 4}, 4),
+    (
+        "area sub-points S8 D3 hidden 2",
+        {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8, "hidden_rounds": 2},
+        4,
+    ),
+    ("area exact D4 hidden 2", {"criterion": "area", "resolver": "exact", "depth_slots": 4, "hidden_rounds": 2}, 4),
 )
 #: The 1M lattice box's rows (cells of 0.25 diameters: 4 per diameter).
 LATTICE_ROWS = (
     ("criterion 1", {"criterion": 1}),
     ("area sub-points S8 D3", {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}),
+    (
+        "area sub-points S8 D3 hidden 2",
+        {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8, "hidden_rounds": 2},
+    ),
 )
+
+
+def _lamp(grid, options, device) -> wl.ShiningLamp:
+    # hidden_rounds is the area estimator's attribute, not a lamp option.
+    opts = dict(options)
+    rounds = opts.pop("hidden_rounds", 0)
+    lamp = wl.ShiningLamp(grid, device=device, **opts)
+    if rounds:
+        lamp.estimator.hidden_rounds = rounds
+    return lamp
+
+
+def stages(scene, grid, options, device, repeats) -> dict:
+    """Seed, depth (with the hidden rounds) and cell pass, each the difference of captured graphs (as
+    ``area_stages.py``)."""
+    lamp = _lamp(grid, options, device)
+    pos = wp.array(grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
+    lamp.update(pos, rad, in_frame=True)
+    steps = (lamp.launch_seed, lamp.launch_depth, lamp.launch_scatter)
+    t = {}
+    for k, name in enumerate(("seed", "depth", "cells")):
+        with wp.ScopedCapture(device=device) as cap:
+            for step in steps[: k + 1]:
+                step()
+        t[name] = time_median_events(lambda c=cap: wp.capture_launch(c.graph), device, repeats=repeats)
+    return {"seed_s": t["seed"], "depth_s": t["depth"] - t["seed"], "cells_s": t["cells"] - t["depth"]}
 
 
 def _update_time(scene, grid, options, device, repeats) -> float:
     # Graph replay on CUDA (CUDA-event median); eager on the CPU (wall-clock median): not comparable.
-    lamp = wl.ShiningLamp(grid, device=device, **options)
+    lamp = _lamp(grid, options, device)
     pos = wp.array(grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
     lamp.update(pos, rad, in_frame=True)
@@ -93,7 +128,7 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool) -> list[dict]:
             if st is None
             else (f"  seed {st['seed_s'] * 1e3:.3f} depth {st['depth_s'] * 1e3:.3f} cells {st['cells_s'] * 1e3:.3f}")
         )
-        print(f"{scene_name:<11} {label:<22} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms{extra}", flush=True)
+        print(f"{scene_name:<11} {label:<30} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms{extra}", flush=True)
     # Ratios over criterion 1 at 4 cells per diameter on the same scene and device.
     for scene_name in {r["scene"] for r in rows}:
         base = [r for r in rows if r["scene"] == scene_name and r["options"] == {"criterion": 1}]
