@@ -30,6 +30,7 @@ from warp_lamp.timing import run_header, time_median_events
 
 ROOT = Path(__file__).resolve().parents[2]
 
+_BOTH = {"criterion": "area", "resolver": "subpoints", "subpoints": 8, "hidden_rounds": 2, "gather_both": True}
 #: (label, lamp options, cells per diameter) on the specimen.
 SPECIMEN_ROWS = (
     ("criterion 1", {"criterion": 1}, 4),
@@ -44,6 +45,7 @@ SPECIMEN_ROWS = (
         4,
     ),
     ("area exact D4 hidden 2", {"criterion": "area", "resolver": "exact", "depth_slots": 4, "hidden_rounds": 2}, 4),
+    ("area sub-points S8 D4 both hidden 2", {**_BOTH, "depth_slots": 4}, 4),
 )
 #: The 1M lattice box's rows (cells of 0.25 diameters: 4 per diameter).
 LATTICE_ROWS = (
@@ -53,16 +55,20 @@ LATTICE_ROWS = (
         "area sub-points S8 D3 hidden 2",
         {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8, "hidden_rounds": 2},
     ),
+    ("area sub-points S8 D4 both hidden 2", {**_BOTH, "depth_slots": 4}),
 )
 
 
 def _lamp(grid, options, device) -> wl.ShiningLamp:
-    # hidden_rounds is the area estimator's attribute, not a lamp option.
+    # hidden_rounds and gather_both are the area estimator's attributes, not lamp options.
     opts = dict(options)
     rounds = opts.pop("hidden_rounds", 0)
+    both = opts.pop("gather_both", False)
     lamp = wl.ShiningLamp(grid, device=device, **opts)
     if rounds:
         lamp.estimator.hidden_rounds = rounds
+    if both:
+        lamp.estimator.gather_both = True
     return lamp
 
 
@@ -128,7 +134,7 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool) -> list[dict]:
             if st is None
             else (f"  seed {st['seed_s'] * 1e3:.3f} depth {st['depth_s'] * 1e3:.3f} cells {st['cells_s'] * 1e3:.3f}")
         )
-        print(f"{scene_name:<11} {label:<30} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms{extra}", flush=True)
+        print(f"{scene_name:<11} {label:<36} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms{extra}", flush=True)
     # Ratios over criterion 1 at 4 cells per diameter on the same scene and device.
     for scene_name in {r["scene"] for r in rows}:
         base = [r for r in rows if r["scene"] == scene_name and r["options"] == {"criterion": 1}]
