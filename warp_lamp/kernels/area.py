@@ -6,7 +6,9 @@ left at the cell's sample rays (the cell corners) and does, in this order, exact
 
 1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
    when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``; then cull those
-   that cannot be first anywhere in the cell;
+   that cannot be first anywhere in the cell. With :data:`GATHER_BOTH` in the lamp mask the candidates are both
+   lamps' keys. The depth pass may have left out the spheres :func:`area_hidden` found hidden (its D slots then
+   hold the next spheres along each ray);
 2. order the seeds for the cell: every pair whose disks overlap is ordered by which surface a ray meets first
    (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`) where that order
    holds on the whole cell (:func:`pair_relation`), and the seeds are put in a sequence that keeps every such

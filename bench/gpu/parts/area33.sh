@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The area criterion against refinement: specimen and 1M-lattice rows with stage tables, the speed-error table's times for this GPU kind, the area and tolerance tests on CUDA (~5 min on one H100).
+# Area criterion vs refinement: specimen and 1M rows with stages, speed-error times, area/tolerance tests (~5 min).
+# Rows: criterion 1 at 4/16/32, sub-points D3 at 3/4, exact D4, and the new gathers (hidden rounds, both lamps).
 # One JSON ($OUT/area33.json: rows, stages, the merged speed-error table under "speed_error", tolerance='s
 # choices, the tests' tail); the lease writes the log ($OUT/area33.log). The lead copies "speed_error" into
 # warp_lamp/data/speed_error.json:
