@@ -5,8 +5,9 @@ the shipped table, with what ``tolerance=`` then chooses.
 Rows: the SphereTest specimen with criterion 1 at 4 / 16 / 32 cells per diameter, the area criterion's sub-points
 (D = 3, 8 x 8) at 3 and 4 and its exact resolver (D = 4) at 4; the 1M lattice box (cells of 0.25 diameters) with
 criterion 1 and the sub-points (CUDA only, unless ``--large``). And the gathers that find the lattice balls'
-buried spheres (off by default, ``AreaSplit.hidden_rounds`` and ``gather_both``), whose cost is not yet known. Errors are not measured here (they are the
-device-independent errors of the shipped table, ``warp_lamp/data/speed_error.json``).
+buried spheres (off by default, ``AreaSplit.hidden_rounds`` and ``gather_both``), whose cost is not yet known.
+Errors are not measured here (the shipped table's, device-independent, ``warp_lamp/data/speed_error.json``, and
+``bench/results/experiments/cpu-2026-11-28-area-gather.json`` for the new gathers).
 
     python bench/experiments/area33_gpu.py --device cuda:0 --json $OUT/area33.json       # the lease part
     python bench/experiments/area33_gpu.py --device cpu --quick --json /tmp/a.json     # a dry run here
