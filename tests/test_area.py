@@ -1040,3 +1040,19 @@ def test_both_lamps_gather_equals_the_reference_bitwise(device):
         np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
         assert lamp.diagnostics().area_overflow == ref.stats["overflow"]
         assert (ref.units != one.units).any()
+
+
+def test_gather_option_sets_the_deep_gather_and_refuses_bad_values():
+    """``gather="deep"`` turns on both lamps' keys and two hidden rounds; a bad value, or the deep gather without
+    the area criterion, raises naming ``gather``."""
+    c = np.array([[0.0, 0.0, 0.0], [0.3, 0.1, 0.2]])
+    r = np.array([0.25, 0.2])
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    lamp = wl.ShiningLamp(grid, criterion="area", gather="deep", device="cpu")
+    assert lamp.estimator.gather_both and lamp.estimator.hidden_rounds == 2
+    front = wl.ShiningLamp(grid, criterion="area", device="cpu")
+    assert not front.estimator.gather_both and front.estimator.hidden_rounds == 0
+    with pytest.raises(ValueError, match=r"^gather: expected one of"):
+        wl.ShiningLamp(grid, criterion="area", gather="all", device="cpu")
+    with pytest.raises(ValueError, match=r"^gather: 'deep' is the area criterion's"):
+        wl.ShiningLamp(grid, criterion=1, gather="deep", device="cpu")

@@ -23,7 +23,7 @@ from warp_lamp.pipeline import Estimator, LampFrame, LampInput
 from warp_lamp.validate import LAMPS, check_budget
 from warp_lamp.wetted import WettedSurface
 
-__all__ = ["AreaSplit", "FirstHit", "LampDiagnostics", "WettedCrossings", "lamp_owner_maps"]
+__all__ = ["AREA_GATHERS", "AreaSplit", "FirstHit", "LampDiagnostics", "WettedCrossings", "lamp_owner_maps"]
 
 _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
 
@@ -31,6 +31,9 @@ _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
 AREA_EXACT_UNIT = 4096
 #: Resolvers of the area criterion.
 AREA_RESOLVERS = ("subpoints", "exact")
+#: Gathers of the area criterion: the front slots of the cell's corner rays, or ``"deep"`` (both lamps' slots after
+#: the hidden-sphere rounds).
+AREA_GATHERS = ("front", "deep")
 #: Threads the depth pass aims for when it splits a small body's footprints: about what an H100 holds resident
 #: (132 SMs x 2048).
 _TARGET_THREADS = 1 << 18
