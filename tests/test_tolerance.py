@@ -66,7 +66,7 @@ def test_tolerance_leaves_the_settings_to_the_choice():
         wl.ShiningLamp(wl.LampGrid.enclosing(c, r), tolerance=0.05, device="cpu")
 
 
-@pytest.mark.parametrize("tol", [0.1, 0.03])
+@pytest.mark.parametrize("tol", [0.1, 0.03, 0.01])
 def test_the_choice_runs_and_meets_the_tolerance_on_a_ball(device, tol):
     """lamp_forces(tolerance=t) equals the chosen settings given explicitly, and its measured error is <= t on a
     smaller ball of the table's lattice family (another scene than the table's)."""
