@@ -1039,3 +1039,89 @@ def test_area_criterion_warns_of_fines_narrower_than_a_cell(device):
     with pytest.warns(UserWarning, match=r"criterion 'area': 30 particles narrower than a cell .* get no load"):
         f = wl.lamp_forces(c, r, 1e6, criterion="area", device=device)
     assert np.count_nonzero(np.abs(f[-30:]).sum(axis=1) == 0.0) > 0  # the warning is not idle
+
+
+def test_hidden_spheres_are_invisible_and_leave_the_slots():
+    """The spheres ``hidden_spheres`` finds behind one other sphere (a lattice ball's see-through columns) have no
+    visible area from that lamp by the independent exact areas, and the depth pass without them never keeps them."""
+    from warp_lamp.reference import hidden_spheres
+    from warp_lamp.scenes import scene_lattice_ball
+
+    sc = scene_lattice_ball(diameter=0.03, seed=3)
+    grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4)
+    hidden = hidden_spheres(sc.centers, sc.radii, grid, depth_slots=3, rounds=2)
+    exact = visible_area_reference(sc.centers, sc.radii)
+    assert hidden.sum() > 0.2 * hidden.size  # the columns hide many
+    assert not (exact[hidden] > 0).any()
+    keys, offsets = area_depth_slots(sc.centers, sc.radii, grid, depth_slots=3, hidden=hidden)
+    for a in range(3):
+        nu, nv = (int(x) for x in grid.counts[a])
+        for side in range(2):
+            k = keys.reshape(-1, 2, 3)[offsets[a] : offsets[a] + (nu + 1) * (nv + 1), side]
+            owners = (k[k != np.uint64(2**64 - 1)] & np.uint64(0xFFFFFFFF)).astype(np.int64)
+            assert not hidden[owners, 2 * a + side].any()
+
+
+@pytest.mark.parametrize("rounds", [1, 2])
+def test_hidden_rounds_equal_the_reference_bitwise(device, rounds):
+    """The hidden-sphere rounds (flag what one key hides, rerun the depth pass without it) leave bitwise the
+    reference's keys and sub-point units on a lattice ball and a random packing, and change the keys (they act)."""
+    from warp_lamp.reference import hidden_spheres
+    from warp_lamp.scenes import scene_lattice_ball
+
+    rng = np.random.default_rng(5)
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    for c, r in ((ball.centers, ball.radii), polydisperse_scene(rng, n=150)):
+        grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+        hidden = hidden_spheres(c, r, grid, depth_slots=3, rounds=rounds)
+        want, _ = area_depth_slots(c, r, grid, depth_slots=3, hidden=hidden)
+        plain, _ = area_depth_slots(c, r, grid, depth_slots=3)
+        ref = area_estimate_reference(c, r, grid, depth_slots=3, resolver="subpoints", _hidden_rounds=rounds)
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=3, device=device)
+        lamp.estimator.hidden_rounds = rounds
+        pos, rad = device_arrays(grid.to_frame(c), r, device)
+        for _ in range(2):  # the second update starts from the first's keys
+            lamp.update(pos, rad, in_frame=True)
+            np.testing.assert_array_equal(lamp.keys.numpy(), want)
+            np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
+        assert (want != plain).any()
+        assert lamp.diagnostics().invalid == 0
+
+
+def test_both_lamps_gather_equals_the_reference_bitwise(device):
+    """Seeds gathered from both lamps' keys (with the hidden rounds) give bitwise the reference's sub-point units
+    and overflow count, on a lattice ball, and differ from the one-lamp gather (they act)."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    c, r = ball.centers, ball.radii
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(c), r, device)
+    for rounds in (0, 2):
+        ref = area_estimate_reference(
+            c, r, grid, depth_slots=3, resolver="subpoints", _cell_seeds="both", _hidden_rounds=rounds
+        )
+        one = area_estimate_reference(c, r, grid, depth_slots=3, resolver="subpoints", _hidden_rounds=rounds)
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=3, device=device)
+        lamp.estimator.gather_both = True
+        lamp.estimator.hidden_rounds = rounds
+        lamp.update(pos, rad, in_frame=True)
+        np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
+        assert lamp.diagnostics().area_overflow == ref.stats["overflow"]
+        assert (ref.units != one.units).any()
+
+
+def test_gather_option_sets_the_deep_gather_and_refuses_bad_values():
+    """``gather="deep"`` turns on both lamps' keys and two hidden rounds; a bad value, or the deep gather without
+    the area criterion, raises naming ``gather``."""
+    c = np.array([[0.0, 0.0, 0.0], [0.3, 0.1, 0.2]])
+    r = np.array([0.25, 0.2])
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    lamp = wl.ShiningLamp(grid, criterion="area", gather="deep", device="cpu")
+    assert lamp.estimator.gather_both and lamp.estimator.hidden_rounds == 2
+    front = wl.ShiningLamp(grid, criterion="area", device="cpu")
+    assert not front.estimator.gather_both and front.estimator.hidden_rounds == 0
+    with pytest.raises(ValueError, match=r"^gather: expected one of"):
+        wl.ShiningLamp(grid, criterion="area", gather="all", device="cpu")
+    with pytest.raises(ValueError, match=r"^gather: 'deep' is the area criterion's"):
+        wl.ShiningLamp(grid, criterion=1, gather="deep", device="cpu")

@@ -66,7 +66,7 @@ def test_tolerance_leaves_the_settings_to_the_choice():
         wl.ShiningLamp(wl.LampGrid.enclosing(c, r), tolerance=0.05, device="cpu")
 
 
-@pytest.mark.parametrize("tol", [0.1, 0.03])
+@pytest.mark.parametrize("tol", [0.1, 0.03, 0.01])
 def test_the_choice_runs_and_meets_the_tolerance_on_a_ball(device, tol):
     """lamp_forces(tolerance=t) equals the chosen settings given explicitly, and its measured error is <= t on a
     smaller ball of the table's lattice family (another scene than the table's)."""
@@ -91,3 +91,16 @@ def test_the_shipped_table_covers_every_candidate_on_the_cpu():
     assert all(r["error"] > 0 and r["ratio"]["cpu"] > 0 for r in rows)
     unit = [r for r in rows if r["criterion"] == 1 and r["cells_per_diameter"] == 4]
     assert len(unit) == 1 and unit[0]["ratio"]["cpu"] == 1.0
+
+
+def test_a_deep_gather_row_is_chosen_with_its_gather_and_rows_without_a_kind_are_skipped():
+    """A table row of the deep gather carries ``gather`` into the choice's lamp options and its description; a row
+    without a time for the device's kind is never chosen there."""
+    deep = _row("area", 4, 0.007, 8.0, resolver="subpoints", depth_slots=4, subpoints=8, gather="deep")
+    table = {"kinds": {"cpu": {}}, "rows": [_row(1, 32, 0.006, 12.0), deep]}
+    c = choose_settings(0.01, "cpu", table=table, margin=1.2)
+    want = {"criterion": "area", "resolver": "subpoints", "depth_slots": 4, "subpoints": 8, "gather": "deep"}
+    assert c.options() == want
+    assert "deep gather" in c.describe()
+    untimed = {"kinds": {"cpu": {}}, "rows": [_row(1, 32, 0.006, 12.0), {**deep, "ratio": {"h100": 8.0}}]}
+    assert choose_settings(0.01, "cpu", table=untimed, margin=1.2).criterion == 1

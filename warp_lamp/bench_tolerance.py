@@ -28,14 +28,25 @@ from warp_lamp.scenes import Scene, scene_lattice_ball, scene_sphere_specimen
 from warp_lamp.timing import run_header
 from warp_lamp.tolerance import LampChoice, choose_settings, device_kind
 
-__all__ = ["SETTINGS", "check_tolerance", "held_out_scene", "measure_table", "merge_kind", "table_scenes"]
+__all__ = [
+    "SETTINGS",
+    "check_tolerance",
+    "complete_table",
+    "held_out_scene",
+    "measure_table",
+    "merge_kind",
+    "table_scenes",
+]
 
-#: Candidate settings: (criterion, resolver, depth_slots, subpoints, cells per diameter).
+#: Candidate settings: (criterion, resolver, depth_slots, subpoints, cells per diameter, gather); the table's rows in
+#: this order.
 SETTINGS = (
-    *[(1, None, None, None, k) for k in (2, 3, 4, 6, 8, 12, 16, 24, 32)],
-    *[("area", "subpoints", 3, 8, k) for k in (2, 3, 4)],
-    *[("area", "subpoints", 2, 4, k) for k in (2, 3, 4)],
-    *[("area", "exact", d, None, k) for d in (3, 4) for k in (2, 3, 4)],
+    *[(1, None, None, None, k, None) for k in (2, 3, 4, 6, 8, 12, 16, 24, 32)],
+    *[("area", "subpoints", 3, 8, k, "front") for k in (2, 3, 4)],
+    *[("area", "subpoints", 2, 4, k, "front") for k in (2, 3, 4)],
+    *[("area", "exact", d, None, k, "front") for d in (3, 4) for k in (2, 3, 4)],
+    *[("area", "subpoints", 4, 8, k, "deep") for k in (3, 4)],
+    *[("area", "exact", 4, None, k, "deep") for k in (3, 4)],
 )
 #: Tolerances the check asks for.
 CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005)
@@ -57,12 +68,14 @@ def held_out_scene() -> Scene:
     return scene_sphere_specimen(seed=7)
 
 
-def _options(criterion, resolver, slots, subpoints) -> dict:
+def _options(criterion, resolver, slots, subpoints, gather="front") -> dict:
     if criterion != "area":
         return {"criterion": criterion}
     out = {"criterion": "area", "resolver": resolver, "depth_slots": slots}
     if subpoints is not None:
         out["subpoints"] = subpoints
+    if gather != "front":
+        out["gather"] = gather
     return out
 
 
@@ -83,8 +96,8 @@ def setting_error(scene: Scene, options: dict, cells_per_diameter: float, device
 
 def _times(device, repeats: int, timing_scene: Scene) -> list[float]:
     out = []
-    for criterion, resolver, slots, s, k in SETTINGS:
-        lamp = _lamp(timing_scene, _options(criterion, resolver, slots, s), k, device)
+    for criterion, resolver, slots, s, k, gather in SETTINGS:
+        lamp = _lamp(timing_scene, _options(criterion, resolver, slots, s, gather), k, device)
         out.append(time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"])
     return out
 
@@ -99,25 +112,21 @@ def _kind_of(device) -> str:
     return "cuda"
 
 
+def setting_row(setting, scenes: dict, errors_device="cpu") -> dict:
+    """One row of the table without its times: the setting and its errors on ``scenes``."""
+    criterion, resolver, slots, s, k, gather = setting
+    err = {name: setting_error(sc, _options(*setting[:4], gather), k, errors_device) for name, sc in scenes.items()}
+    row = {"criterion": criterion, "resolver": resolver, "depth_slots": slots, "subpoints": s}
+    if criterion == "area":
+        row["gather"] = gather
+    return {**row, "cells_per_diameter": k, "errors": err, "error": max(err.values())}
+
+
 def measure_table(device="cpu", *, repeats: int = 5, errors_device="cpu") -> dict:
     """Errors of every setting on :func:`table_scenes` (on ``errors_device``), and its update time on ``device``
     (the specimen; graph replay on CUDA, eager on the CPU)."""
     scenes = table_scenes()
-    rows = []
-    for criterion, resolver, slots, s, k in SETTINGS:
-        opts = _options(criterion, resolver, slots, s)
-        err = {name: setting_error(sc, opts, k, errors_device) for name, sc in scenes.items()}
-        rows.append(
-            {
-                "criterion": criterion,
-                "resolver": resolver,
-                "depth_slots": slots,
-                "subpoints": s,
-                "cells_per_diameter": k,
-                "errors": err,
-                "error": max(err.values()),
-            }
-        )
+    rows = [setting_row(setting, scenes, errors_device) for setting in SETTINGS]
     table = {
         "rule": "error = max over scenes of the RMS per-particle force error over P pi rbar^2 (surface particles); "
         "ratio = update time over criterion 1 at 4 cells per diameter on the same device kind (the specimen)",
@@ -127,6 +136,40 @@ def measure_table(device="cpu", *, repeats: int = 5, errors_device="cpu") -> dic
         "kinds": {},
     }
     return merge_kind(table, device, repeats=repeats)
+
+
+def _row_setting(row: dict) -> tuple:
+    gather = row.get("gather", "front") if row["criterion"] == "area" else None
+    keys = ("criterion", "resolver", "depth_slots", "subpoints", "cells_per_diameter")
+    return (*(row[k] for k in keys), gather)
+
+
+def complete_table(table: dict, device="cpu", *, repeats: int = 5, errors_device="cpu") -> dict:
+    """Add the rows of :data:`SETTINGS` that ``table`` lacks (in place, in their order): errors on the table's
+    scenes, and times on ``device`` over criterion 1 at 4 cells per diameter timed again in the same run (the other
+    rows and kinds are kept; a GPU kind's times for the new rows come with its next ``merge_kind``)."""
+    have = {_row_setting(r): r for r in table["rows"]}
+    missing = [s for s in SETTINGS if s not in have]
+    if not missing:
+        return table
+    scenes = table_scenes()
+    kind = _kind_of(device)
+    timing_scene = scene_sphere_specimen()
+
+    def time_of(setting) -> float:
+        criterion, resolver, slots, sp, k, gather = setting
+        lamp = _lamp(timing_scene, _options(criterion, resolver, slots, sp, gather), k, device)
+        return time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"]
+
+    base = time_of(next(s for s in SETTINGS if s[0] == 1 and s[4] == 4))
+    for setting in missing:
+        row = setting_row(setting, scenes, errors_device)
+        t = time_of(setting)
+        row["time_s"] = {kind: t}
+        row["ratio"] = {kind: t / base}
+        have[setting] = row
+    table["rows"] = [have[s] for s in SETTINGS if s in have] + [r for k, r in have.items() if k not in SETTINGS]
+    return table
 
 
 def merge_kind(table: dict, device, *, repeats: int = 5) -> dict:
@@ -175,6 +218,7 @@ def main(argv=None) -> int:
     ap.add_argument("--merge", help="an existing table: add this device's times to it (with --times-only)")
     ap.add_argument("--times-only", action="store_true")
     ap.add_argument("--check", metavar="TABLE", help="check a table's choices on this device")
+    ap.add_argument("--complete", metavar="TABLE", help="add the settings a table lacks (errors, this device's times)")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
     t0 = time.perf_counter()
@@ -192,12 +236,15 @@ def main(argv=None) -> int:
             with open(args.out, "w", encoding="utf-8") as f:
                 json.dump({"check": rows, "device": run_header([args.device])}, f, indent=1)
         return 0 if all(r.get("ok", True) for r in rows) else 1
-    if args.times_only:
+    if args.complete:
+        with open(args.complete, encoding="utf-8") as f:
+            table = complete_table(json.load(f), args.device, repeats=args.repeats)
+    elif args.times_only:
         if not args.merge:
             ap.error("--times-only needs --merge TABLE")
         with open(args.merge, encoding="utf-8") as f:
             table = merge_kind(json.load(f), args.device, repeats=args.repeats)
-    else:
+    if not (args.complete or args.times_only):
         table = measure_table(args.device, repeats=args.repeats)
     if args.out:
         with open(args.out, "w", encoding="utf-8") as f:
@@ -205,6 +252,7 @@ def main(argv=None) -> int:
     for row in table["rows"]:
         ratios = ", ".join(f"{k} {v:.3g}x" for k, v in row.get("ratio", {}).items())
         name = row["criterion"] if row["criterion"] != "area" else f"area {row['resolver']} D{row['depth_slots']}"
+        name = f"{name} deep" if row.get("gather") == "deep" else name
         print(f"| {name} | {row['cells_per_diameter']:g} | {100 * row['error']:.3g}% | {ratios} |")
     print(f"({time.perf_counter() - t0:.0f} s)")
     return 0

@@ -1097,6 +1097,8 @@ class DistributedLamp(ShiningLamp):
         mask = lamp_mask(options.lamps)
         shared = dict(split=options.split, order=options.order, max_bytes=options.max_bytes)
         if options.criterion == "area":
+            if options.gather != "front":
+                raise ValueError("gather: the distributed lamp gathers the front slots only (gather='front')")
             area = dict(depth_slots=options.depth_slots, resolver=options.resolver, subpoints=options.subpoints)
             return frame, DistributedAreaSplit(frame, mask, self.comm, **area, **shared)
         reach, margin = self._reach

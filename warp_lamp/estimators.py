@@ -23,7 +23,7 @@ from warp_lamp.pipeline import Estimator, LampFrame, LampInput
 from warp_lamp.validate import LAMPS, check_budget
 from warp_lamp.wetted import WettedSurface
 
-__all__ = ["AreaSplit", "FirstHit", "LampDiagnostics", "WettedCrossings", "lamp_owner_maps"]
+__all__ = ["AREA_GATHERS", "AreaSplit", "FirstHit", "LampDiagnostics", "WettedCrossings", "lamp_owner_maps"]
 
 _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
 
@@ -31,6 +31,9 @@ _EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
 AREA_EXACT_UNIT = 4096
 #: Resolvers of the area criterion.
 AREA_RESOLVERS = ("subpoints", "exact")
+#: Gathers of the area criterion: the front slots of the cell's corner rays, or ``"deep"`` (both lamps' slots after
+#: the hidden-sphere rounds).
+AREA_GATHERS = ("front", "deep")
 #: Threads the depth pass aims for when it splits a small body's footprints: about what an H100 holds resident
 #: (132 SMs x 2048).
 _TARGET_THREADS = 1 << 18
@@ -175,6 +178,11 @@ class FirstHit(Estimator):
         d = self.device
         self.keys = wp.full(2 * depth_slots * samples, value=_EMPTY, dtype=wp.uint64, device=d)
         self.diag = wp.zeros(_N_DIAG, dtype=wp.int32, device=d)
+        # The depth pass's particle flags (the area criterion's hidden spheres; empty: none) and the counters it
+        # adds to (a later pass over the same spheres adds to a scratch copy instead).
+        self._no_flags = wp.empty(0, dtype=wp.int32, device=d)
+        self._hidden_flags = self._no_flags
+        self._depth_diag = self.diag
         self._split = split
         self.split = 0
         self._order = order
@@ -279,8 +287,9 @@ class FirstHit(Estimator):
                 self.split,
                 self.depth_slots,
                 order,
+                self._hidden_flags,
             ],
-            outputs=[self.keys, self.diag],
+            outputs=[self.keys, self._depth_diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
         )
@@ -405,6 +414,12 @@ class AreaSplit(FirstHit):
         #: smaller blocks.
         self.block_dim = 256
         self._work = None
+        self._hidden_rounds = 0
+        self._hidden_buf = None
+        #: Each lamp gathers its cell's seeds from both lamps' corner keys (off by default): the far side's D
+        #: spheres along a corner ray are candidates too, which on a small body reaches the spheres buried
+        #: below slot D (``bench/experiments/area_gather_study.py``); twice the candidates per cell.
+        self.gather_both = False
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
@@ -439,6 +454,63 @@ class AreaSplit(FirstHit):
                 "units": wp.zeros(2 * w * 16, dtype=wp.int32, device=d),
             }
 
+    @property
+    def hidden_rounds(self) -> int:
+        """Rounds of the hidden-sphere pass (0: off, the default). Each round flags the spheres that one sphere
+        among a corner ray's D keys hides from a lamp (``kernels/area.py`` ``area_hidden``) and reruns the depth
+        pass without them, so that the D slots go to spheres that can be seen: the lattice balls' see-through
+        columns otherwise bury visible spheres below slot D (``bench/experiments/area_gather_study.py``). Costs a
+        depth pass per round."""
+        return self._hidden_rounds
+
+    @hidden_rounds.setter
+    def hidden_rounds(self, rounds: int) -> None:
+        if not (isinstance(rounds, int) and 0 <= rounds <= 8):
+            raise ValueError(f"hidden_rounds: expected an int in [0, 8], got {rounds!r}")
+        self._hidden_rounds = rounds
+        if rounds:
+            self._hidden_diag = wp.zeros(self.diag.shape[0], dtype=wp.int32, device=self.device)
+            self._hidden_buf = wp.zeros(self.counts.shape[0] // 3, dtype=wp.int32, device=self.device)
+
+    def reserve(self, n: int) -> None:
+        """As :meth:`FirstHit.reserve`, and the hidden-sphere flags for ``n`` particles."""
+        super().reserve(n)
+        if self._hidden_rounds and self._hidden_buf.shape[0] < self.counts.shape[0] // 3:
+            self._hidden_buf = wp.zeros(self.counts.shape[0] // 3, dtype=wp.int32, device=self.device)
+
+    def launch_depth(self) -> None:
+        """Step 2: every sphere offers its depth to every corner ray it meets; then the hidden-sphere rounds."""
+        self._hidden_flags = self._no_flags
+        self._depth_diag = self.diag
+        super().launch_depth()
+        if not self._hidden_rounds or self.n == 0:
+            return
+        d = self.device
+        flags = self._hidden_buf[: self.n]
+        flags.zero_()
+        for _ in range(self._hidden_rounds):
+            wp.launch(
+                area_kernels.area_hidden,
+                dim=self.n,
+                inputs=[
+                    self._cells(),
+                    self._input.particles,
+                    self.keys,
+                    self.depth_slots,
+                    self._rays().offset,
+                    self.lamp_mask,
+                ],
+                outputs=[flags],
+                device=d,
+            )
+            self.keys.fill_(_EMPTY)
+            # The rerun counts invalid and outside particles again: into a scratch copy.
+            self._hidden_flags = flags
+            self._depth_diag = self._hidden_diag
+            super().launch_depth()
+        self._hidden_flags = self._no_flags
+        self._depth_diag = self.diag
+
     def launch_scatter(self) -> None:
         """Step 3: each cell shares its units among the spheres visible in it."""
         if self.n == 0:
@@ -454,7 +526,7 @@ class AreaSplit(FirstHit):
             keys,
             self.depth_slots,
             self._rays().offset,  # where each lamp's corner samples start among the keys
-            self.lamp_mask,
+            self.lamp_mask | (int(area_kernels.GATHER_BOTH) if self.gather_both else 0),
             area_kernels.RESOLVER_EXACT if self.resolver == "exact" else area_kernels.RESOLVER_SUBPOINTS,
             self.subpoints,
             self.unit,

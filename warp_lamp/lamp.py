@@ -16,6 +16,7 @@ import warp as wp
 
 from warp_lamp.estimators import (
     AREA_EXACT_UNIT,
+    AREA_GATHERS,
     AREA_RESOLVERS,
     AreaSplit,
     FirstHit,
@@ -53,6 +54,7 @@ from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, check_probe_
 
 __all__ = [
     "AREA_EXACT_UNIT",
+    "AREA_GATHERS",
     "AREA_RESOLVERS",
     "LAMPS",
     "FrameAveragedLamp",
@@ -96,6 +98,7 @@ _CHOSEN = {
     "resolver": "subpoints",
     "depth_slots": 3,
     "subpoints": 8,
+    "gather": "front",
     "surfaces": "first",
     "cells_per_diameter": 4,
 }
@@ -121,6 +124,7 @@ class LampOptions:
     depth_slots: int = 3
     resolver: str = "subpoints"
     subpoints: int = 8
+    gather: str = "front"
     follow: bool = False
     split: int | str = "auto"
     order: bool | str = "auto"
@@ -139,6 +143,7 @@ class LampOptions:
         depth_slots=3,
         resolver="subpoints",
         subpoints=8,
+        gather="front",
         follow=False,
         split="auto",
         order="auto",
@@ -162,6 +167,10 @@ class LampOptions:
         area = criterion == "area"
         depth_slots = _check_int("depth_slots", depth_slots, 1, lamp_kernels.MAX_SLOTS) if area else 1
         subpoints = _check_int("subpoints", subpoints, 1, 16)
+        if gather not in AREA_GATHERS:
+            raise ValueError(f"gather: expected one of {AREA_GATHERS}, got {format_value(gather)}")
+        if gather != "front" and not area:
+            raise ValueError(f"gather: {gather!r} is the area criterion's (criterion='area')")
         if surfaces not in ("first", "all"):
             raise ValueError(f"surfaces: expected 'first' or 'all', got {format_value(surfaces)}")
         if surfaces == "all":
@@ -185,6 +194,7 @@ class LampOptions:
             depth_slots=depth_slots,
             resolver=resolver,
             subpoints=subpoints,
+            gather=gather,
             follow=bool(follow),
             split=split,
             order=order,
@@ -209,9 +219,13 @@ class LampOptions:
             )
         shared = dict(split=self.split, order=self.order, max_bytes=self.max_bytes)
         if self.criterion == "area":
-            return AreaSplit(
+            est = AreaSplit(
                 frame, mask, depth_slots=self.depth_slots, resolver=self.resolver, subpoints=self.subpoints, **shared
             )
+            if self.gather == "deep":
+                est.gather_both = True
+                est.hidden_rounds = 2
+            return est
         return FirstHit(frame, mask, criterion=self.criterion, **shared)
 
 
@@ -268,6 +282,7 @@ class ShiningLamp:
         depth_slots: int = 3,
         resolver: str = "subpoints",
         subpoints: int = 8,
+        gather: str = "front",
         follow: bool = False,
         split: int | str = "auto",
         order: bool | str = "auto",
@@ -298,6 +313,11 @@ class ShiningLamp:
                 holds it; bitwise the same on CPU and GPU) or ``"exact"`` (circle arcs and cell edges; a last-bit
                 difference of the trigonometry between CPU and GPU may move one unit of 4096 per cell).
             subpoints: Area criterion, sub-point resolver: points per cell edge, 1 to 16.
+            gather: Area criterion: where each cell finds the spheres it splits among. ``"front"``: the D slots of
+                its corner rays (and the ring's front spheres). ``"deep"``: also the other lamp's slots, after two
+                rounds that drop from the depth pass the spheres one other sphere hides, so that ordered packings
+                with see-through columns lose no buried visible sphere (several times the gather's work; the
+                distributed lamp has only ``"front"``).
             follow: Move the grid with the body: each update finds the particles' box on the device and shifts
                 the frame origin by whole cells so that the body sits centred in the grid, whose cell counts are a
                 fixed capacity. Particles that outgrow it are counted as ``outside``; the forces still balance.
@@ -361,6 +381,7 @@ class ShiningLamp:
                     resolver=resolver,
                     depth_slots=depth_slots,
                     subpoints=subpoints,
+                    gather=gather,
                     surfaces=surfaces,
                 )
                 chosen = self.choice.options()
@@ -368,6 +389,7 @@ class ShiningLamp:
                 resolver = chosen.get("resolver", resolver)
                 depth_slots = chosen.get("depth_slots", depth_slots)
                 subpoints = chosen.get("subpoints", subpoints)
+                gather = chosen.get("gather", gather)
                 grid = grid.build(self.choice.cells_per_diameter)
             else:
                 grid = grid.build()
@@ -384,6 +406,7 @@ class ShiningLamp:
             depth_slots=depth_slots,
             resolver=resolver,
             subpoints=subpoints,
+            gather=gather,
             follow=follow,
             split=split,
             order=order,
@@ -832,6 +855,7 @@ def lamp_update(
     depth_slots: int = 3,
     resolver: str = "subpoints",
     subpoints: int = 8,
+    gather: str = "front",
     surfaces: str = "first",
     probe_radius: float | None = None,
     max_rounds: int = DEFAULT_MAX_ROUNDS,
@@ -867,6 +891,7 @@ def lamp_update(
         depth_slots: Area criterion: spheres kept per corner ray (:class:`ShiningLamp`).
         resolver: Area criterion: ``"subpoints"`` or ``"exact"`` (:class:`ShiningLamp`).
         subpoints: Area criterion, sub-point resolver: points per cell edge (:class:`ShiningLamp`).
+        gather: Area criterion: ``"front"`` or ``"deep"`` (:class:`ShiningLamp`).
         surfaces: ``"first"`` (the memo's lamp) or ``"all"`` (every wetted surface; :class:`ShiningLamp`).
         probe_radius: ``surfaces="all"``: the probe radius rho [m] (:class:`ShiningLamp`).
         max_rounds: ``surfaces="all"``: bound on the connectivity solve's rounds.
@@ -883,6 +908,7 @@ def lamp_update(
         depth_slots=depth_slots,
         resolver=resolver,
         subpoints=subpoints,
+        gather=gather,
         surfaces=surfaces,
         probe_radius=probe_radius,
         max_rounds=max_rounds,
@@ -915,6 +941,7 @@ def lamp_forces(
     depth_slots: int = 3,
     resolver: str = "subpoints",
     subpoints: int = 8,
+    gather: str = "front",
     surfaces: str = "first",
     probe_radius: float | None = None,
     max_rounds: int = DEFAULT_MAX_ROUNDS,
@@ -1000,6 +1027,7 @@ def lamp_forces(
             resolver=resolver,
             depth_slots=depth_slots,
             subpoints=subpoints,
+            gather=gather,
             surfaces=surfaces,
             cells_per_diameter=cells_per_diameter,
         )
@@ -1008,12 +1036,14 @@ def lamp_forces(
         criterion = opts["criterion"]
         resolver, depth_slots = opts.get("resolver", resolver), opts.get("depth_slots", depth_slots)
         subpoints = opts.get("subpoints", subpoints)
+        gather = opts.get("gather", gather)
     options = LampOptions.checked(
         criterion=criterion,
         lamps=lamps,
         depth_slots=depth_slots,
         resolver=resolver,
         subpoints=subpoints,
+        gather=gather,
         surfaces=surfaces,
         probe_radius=probe_radius,
         max_rounds=max_rounds,

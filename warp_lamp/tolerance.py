@@ -54,6 +54,7 @@ class LampChoice:
         resolver: Area criterion's resolver (None for criterion 1).
         depth_slots: Area criterion's slots (None for criterion 1).
         subpoints: Sub-point resolver's points per cell edge (None otherwise).
+        gather: Area criterion's gather, ``"front"`` or ``"deep"`` (None for criterion 1).
         error: The setting's error in the table (the largest RMS over its scenes).
         time_ratio: Its update time over criterion 1 at 4 cells per diameter, on ``kind``.
         kind: The device kind whose times decided.
@@ -68,6 +69,7 @@ class LampChoice:
     error: float
     time_ratio: float
     kind: str
+    gather: str | None = None
 
     def options(self) -> dict:
         """The lamp keywords of the choice (``criterion`` and, for the area criterion, its resolver settings)."""
@@ -76,12 +78,15 @@ class LampChoice:
             out.update(resolver=self.resolver, depth_slots=self.depth_slots)
             if self.subpoints is not None:
                 out["subpoints"] = self.subpoints
+            if self.gather is not None:
+                out["gather"] = self.gather
         return out
 
     def describe(self) -> str:
         """One line for people: what was chosen, its table error and its cost."""
         if self.criterion == "area":
             extra = f", D = {self.depth_slots}" + (f", S = {self.subpoints}" if self.subpoints else "")
+            extra += ", deep gather" if self.gather == "deep" else ""
             what = f"area criterion ({self.resolver}{extra})"
         else:
             what = "criterion 1"
@@ -136,7 +141,7 @@ def choose_settings(tolerance, device=None, *, table: dict | None = None, margin
             f"tolerance: {tol:.3g} is tighter than any setting in the speed-error table reaches with its margin of "
             f"{margin:g} (best {best['error']:.3g}: {best['criterion']} at {best['cells_per_diameter']:g} cells per "
             "diameter); "
-            "choose the settings yourself (criterion='area', resolver='exact', depth_slots=4)"
+            "choose the settings yourself (criterion='area', resolver='exact', depth_slots=4, gather='deep')"
         )
     r = min(rows, key=lambda r: (r["ratio"][kind], r["error"]))
     return LampChoice(
@@ -149,4 +154,5 @@ def choose_settings(tolerance, device=None, *, table: dict | None = None, margin
         error=float(r["error"]),
         time_ratio=float(r["ratio"][kind]),
         kind=kind,
+        gather=r.get("gather", "front") if r["criterion"] == "area" else None,
     )

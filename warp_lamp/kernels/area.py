@@ -6,7 +6,9 @@ left at the cell's sample rays (the cell corners) and does, in this order, exact
 
 1. gather the seeds: the D slots of the 4 corner samples and slot 0 of the 8 ring samples, deduplicated, kept
    when the disk meets the cell's interior, ordered by (centre depth, id), at most ``MAX_SEEDS``; then cull those
-   that cannot be first anywhere in the cell;
+   that cannot be first anywhere in the cell. With :data:`GATHER_BOTH` in the lamp mask the candidates are both
+   lamps' keys. The depth pass may have left out the spheres :func:`area_hidden` found hidden (its D slots then
+   hold the next spheres along each ray);
 2. order the seeds for the cell: every pair whose disks overlap is ordered by which surface a ray meets first
    (the entry point for the low lamp, the exit point for the high one: :func:`surface_depth`) where that order
    holds on the whole cell (:func:`pair_relation`), and the seeds are put in a sequence that keeps every such
@@ -42,7 +44,7 @@ import warp as wp
 
 from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
-from warp_lamp.kernels.lamp import LampParticles
+from warp_lamp.kernels.lamp import LampParticles, frame_sphere
 
 # fuse_fp off: the sub-point tests and the gather must round alike on CPU and CUDA (bitwise equal units).
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
@@ -58,6 +60,8 @@ MISS = wp.constant(wp.inf)
 
 RESOLVER_EXACT = wp.constant(0)
 RESOLVER_SUBPOINTS = wp.constant(1)
+#: Lamp-mask bit (past the six lamps): each lamp gathers its cell's seeds from both lamps' keys.
+GATHER_BOTH = wp.constant(64)
 DIAG_OVERFLOW = wp.constant(0)
 DIAG_ONE_SIDED = wp.constant(1)
 
@@ -569,9 +573,13 @@ def side_seeds(
     a: wp.int32,
     i: wp.int32,
     j: wp.int32,
-    side: wp.int32,
+    side_gather: wp.int32,
 ) -> SeedList:
-    """Steps 1-2 of the module docstring for lamp ``side`` of cell (i, j) of grid a: gather, cull, order."""
+    """Steps 1-2 of the module docstring for lamp ``side`` of cell (i, j) of grid a: gather, cull, order.
+    ``side_gather`` is side + 2 (:data:`GATHER_BOTH` set in the lamp mask): the candidates are both lamps' keys
+    (the reference's ``_cell_seeds="both"``), each ordered by this lamp's depth."""
+    side = side_gather & 1
+    passes = 1 + (side_gather >> 1)
     nu = grid.n_u[a]
     nv = grid.n_v[a]
     hu = grid.h_u[a]
@@ -586,8 +594,13 @@ def side_seeds(
     oz = vec_seed_f()
     rr = vec_seed_f()
     count = int(0)
-    for m in range(4 * d + 8):
-        # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0.
+    for mm in range(passes * (4 * d + 8)):
+        # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0 (then the other
+        # lamp's, with GATHER_BOTH).
+        m = mm % (4 * d + 8)
+        key_side = side
+        if mm >= 4 * d + 8:
+            key_side = 1 - side
         di = int(0)
         dj = int(0)
         slot = int(0)
@@ -608,7 +621,7 @@ def side_seeds(
         sj = j + dj
         if si < 0 or si > nu or sj < 0 or sj > nv:
             continue
-        key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + side) * d + slot]
+        key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + key_side) * d + slot]
         if key == EMPTY_KEY:
             continue
         pid = key_owner(key)
@@ -802,7 +815,8 @@ def side_shares(
     subpoints: wp.int32,
     unit: wp.int32,
 ) -> SideShares:
-    """Steps 1-3 for lamp ``side`` of cell (i, j) of grid a, in one thread."""
+    """Steps 1-3 for lamp ``side`` of cell (i, j) of grid a, in one thread (``side`` as ``side_seeds``'s
+    ``side_gather``)."""
     seeds = side_seeds(grid, particles, keys, d, sample_offset, a, i, j, side)
     return resolve(seeds, grid.h_u[a], grid.h_v[a], resolver, subpoints, unit)
 
@@ -900,15 +914,16 @@ def area_cells(
     bits = (lamp_mask >> (2 * a)) & 3
     if bits == 0:
         return
+    both = wp.where((lamp_mask & GATHER_BOTH) != 0, 2, 0)
     s0 = SideShares()
     s1 = SideShares()
     if (bits & 1) != 0:
         s0 = side_shares(
-            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0, resolver, subpoints, unit
+            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0 + both, resolver, subpoints, unit
         )
     if (bits & 2) != 0:
         s1 = side_shares(
-            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1, resolver, subpoints, unit
+            grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1 + both, resolver, subpoints, unit
         )
     pay_out(a, bits, s0, s1, resolver, counts, diag)
 
@@ -972,12 +987,13 @@ def _area_kernels(exact: bool):
             return
         hu = grid.h_u[a]
         hv = grid.h_v[a]
+        both = wp.where((lamp_mask & GATHER_BOTH) != 0, 2, 0)
         q0 = SeedList()
         q1 = SeedList()
         if (bits & 1) != 0:
-            q0 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0)
+            q0 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 0 + both)
         if (bits & 2) != 0:
-            q1 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1)
+            q1 = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], 1 + both)
         slot = int(-1)
         if q0.undecided != 0 or q1.undecided != 0:
             slot = wp.atomic_add(work_count, 0, 1)
@@ -1092,3 +1108,62 @@ def _area_kernels(exact: bool):
 
 
 AREA_DEFERRED = {RESOLVER_SUBPOINTS: _area_kernels(False), RESOLVER_EXACT: _area_kernels(True)}
+
+
+@wp.kernel
+def area_hidden(
+    grid: LampGridParams,
+    particles: LampParticles,
+    keys: wp.array[wp.uint64],
+    depth_slots: wp.int32,
+    sample_offset: wp.vec3i,
+    lamp_mask: wp.int32,
+    # outputs
+    hidden: wp.array[wp.int32],
+):
+    """One thread per sphere B: set bit 2 a + side of ``hidden[B]`` where one sphere A among the D keys of the corner
+    sample nearest B's centre hides B from that lamp (``warp_lamp.reference.hidden_spheres``, bitwise): B's disk
+    inside A's, ``e = |o| + r_B < r_A``, and B's nearest point behind A's surface at its deepest over B's disk,
+    ``z_B - r_B > z_A - sqrt(r_A^2 - e^2)``. Bits already set stay set (a later round adds to them)."""
+    b = wp.tid()
+    sphere = frame_sphere(grid, particles, b)
+    if not sphere.casts:
+        return
+    bits = hidden[b]
+    rb = sphere.radius
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) == 0:
+            continue
+        nu = grid.n_u[a]
+        nv = grid.n_v[a]
+        pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
+        pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
+        si = wp.clamp(int(wp.floor(pu / grid.h_u[a] + 0.5)), 0, nu)
+        sj = wp.clamp(int(wp.floor(pv / grid.h_v[a] + 0.5)), 0, nv)
+        sample = sample_offset[a] + sj * (nu + 1) + si
+        for side in range(2):
+            bit = 1 << (2 * a + side)
+            if (lamp_mask & bit) == 0 or (bits & bit) != 0:
+                continue
+            zb = sphere.center[a]
+            if side == 1:
+                zb = -zb
+            for k in range(depth_slots):
+                key = keys[(2 * sample + side) * depth_slots + k]
+                if key == EMPTY_KEY:
+                    continue
+                h = key_owner(key)
+                if h == b:
+                    continue
+                ph = wp.vec3()
+                ph = grid_to_frame(grid, particles.positions[h])
+                rh = particles.radii[h]
+                du = pu - (ph[(a + 1) % 3] - grid.corner_u[a])
+                dv = pv - (ph[(a + 2) % 3] - grid.corner_v[a])
+                e = wp.sqrt(du * du + dv * dv) + rb
+                zh = ph[a]
+                if side == 1:
+                    zh = -zh
+                if e < rh and zb - rb > zh - wp.sqrt(wp.max(rh * rh - e * e, 0.0)):
+                    bits = bits | bit
+    hidden[b] = bits

@@ -373,6 +373,7 @@ def _depth_kernel(slots: int, shared: bool):
         split: wp.int32,
         depth_slots: wp.int32,
         order: wp.array[wp.int32],
+        hidden: wp.array[wp.int32],
         # outputs
         keys: wp.array[wp.uint64],
         diag: wp.array[wp.int32],
@@ -384,6 +385,9 @@ def _depth_kernel(slots: int, shared: bool):
         s threads share each (sphere, axis) and take its rows in turn; thread t works on the (t % n)-th particle of
         axis a's ``order`` (``lamp_order_keys``, sorted), or of the caller's order where ``order`` is empty, so that a
         warp holds particles that read the same rows.
+
+        ``hidden`` (D slots only; empty: none): per particle, bit 2 a + side set where that lamp can never see it
+        (``kernels/area.py`` ``area_hidden``): it offers nothing there, so its slots go to the next spheres.
         """
         t = wp.tid()
         n = particles.n
@@ -409,11 +413,15 @@ def _depth_kernel(slots: int, shared: bool):
             wp.atomic_add(diag, DIAG_OUTSIDE, 1)
         r = sphere.radius
         r2 = r * r
+        skip = int(0)
+        if wp.static(slots == 0):
+            if hidden.shape[0] > 0:
+                skip = hidden[particle]
         # A loop of constant length that Warp unrolls: every vector index below is then a literal, which the compiler
         # keeps in registers. With the axis as a runtime value they went to local memory and the pass took three
         # times as long (bench/NOTES.md v5).
         for a in range(3):
-            lamp_bits = (lamp_mask >> (2 * a)) & 3
+            lamp_bits = ((lamp_mask & ~skip) >> (2 * a)) & 3
             if (axis < 0 or axis == a) and lamp_bits != 0:
                 pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
                 pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]

@@ -41,6 +41,7 @@ __all__ = [
     "AreaEstimate",
     "area_depth_slots",
     "area_estimate_reference",
+    "hidden_spheres",
     "ordered_key",
     "visible_area_reference",
     "visible_disk_areas",
@@ -659,13 +660,15 @@ def _sample_hits(pu, pv, r, hu, hv, nu, nv):
     return pid[hit], (j * (nu + 1) + i)[hit], s[hit]
 
 
-def area_depth_slots(centers, radii, grid, *, depth_slots=3, lamps="all", active=None):
+def area_depth_slots(centers, radii, grid, *, depth_slots=3, lamps="all", active=None, hidden=None):
     """The D-slot depth pass in NumPy: per sample ray (cell corner) and lamp, the D smallest (depth, id) keys.
 
     Sample (i, j), 0 <= i <= n_u, 0 <= j <= n_v, of grid a sits at ``(f32(i) h_u, f32(j) h_v)`` from the grid
     corner; its low lamp keys ``pack(p_a - s, id)`` (entry depth), its high lamp ``pack(-(p_a + s), id)``
     (negated exit depth), in float32 as :func:`_sample_hits` says, positions being ``f32(centers - origin)``
     (float64 subtraction first, as :func:`warp_lamp.lamp_forces` does). Ties go to the lowest id (the packing).
+    ``hidden`` (bool, shape (N, 6), columns in ``LAMPS`` order) leaves out the spheres a lamp can never see
+    (:func:`hidden_spheres`): their slots go to the next spheres along the ray.
 
     Returns:
         (keys, offsets): uint64 keys in the kernel layout, sample s of grid a holding
@@ -687,10 +690,14 @@ def area_depth_slots(centers, radii, grid, *, depth_slots=3, lamps="all", active
         pu = q[ids, u] - cu
         pv = q[ids, v] - cv
         pd = q[ids, a]
-        pid, sample, s = _sample_hits(pu, pv, r[ids], hu, hv, nu, nv)
+        pid_all, sample_all, s_all = _sample_hits(pu, pv, r[ids], hu, hv, nu, nv)
         for side in range(2):
             if not mask >> (2 * a + side) & 1:
                 continue
+            pid, sample, s = pid_all, sample_all, s_all
+            if hidden is not None:
+                show = ~hidden[ids[pid], 2 * a + side]
+                pid, sample, s = pid[show], sample[show], s[show]
             depth = pd[pid] - s if side == 0 else -(pd[pid] + s)
             k = ordered_key(depth, ids[pid])
             order = np.lexsort((k, sample))
@@ -701,6 +708,55 @@ def area_depth_slots(centers, radii, grid, *, depth_slots=3, lamps="all", active
             slot = (2 * (offsets[a] + ss[keep]) + side) * d + rank[keep]
             keys[slot] = kk[keep]
     return keys, offsets
+
+
+def hidden_spheres(centers, radii, grid, *, depth_slots=3, rounds=1, lamps="all", active=None) -> np.ndarray:
+    """Spheres a lamp can never see because one other sphere hides them, found from the depth pass's own slots.
+
+    Sphere B is hidden from the low lamp of axis a by sphere A when B's projected disk lies inside A's and B's
+    entry surface is behind A's on the whole of B's disk. In float32, with ``o`` the centres' offset across the
+    lamp, ``e = sqrt(o_u o_u + o_v o_v) + r_B`` (the farthest point of B's disk from A's axis) and z the depth along
+    the lamp (``p_a``; ``-p_a`` for the high lamp): ``e < r_A`` and ``z_B - r_B > z_A - sqrt(r_A r_A - e e)``
+    (B's nearest point against A's surface at its deepest over B's disk). The candidates A for B are the D keys
+    of the sample nearest B's centre (``floor(p / h + 1/2)``, clamped to the grid): a hider holds B's whole disk,
+    so it meets that ray in front of B. Each round runs the depth pass without the spheres found so far, so
+    that the next D spheres along each ray offer themselves as hiders.
+
+    Returns:
+        Bool array (N, 6), columns in ``LAMPS`` order: True where the lamp can never see the sphere.
+    """
+    c, r64, on = _check_scene(centers, radii, active)
+    mask = lamp_mask(lamps)
+    d = int(depth_slots)
+    q, r, axes = _frame(c, r64, grid, on)
+    n = len(r)
+    hidden = np.zeros((n, 6), dtype=bool)
+    for _ in range(int(rounds)):
+        keys, offsets = area_depth_slots(c, r64, grid, depth_slots=d, lamps=lamps, active=active, hidden=hidden)
+        new = hidden.copy()
+        for a, (cu, cv, hu, hv, nu, nv) in enumerate(axes):
+            u, v = (a + 1) % 3, (a + 2) % 3
+            pu = q[:, u] - cu
+            pv = q[:, v] - cv
+            i = np.clip(np.floor(pu / hu + np.float32(0.5)), 0, nu).astype(np.int64)
+            j = np.clip(np.floor(pv / hv + np.float32(0.5)), 0, nv).astype(np.int64)
+            sample = offsets[a] + j * (nu + 1) + i
+            for side in range(2):
+                if not mask >> (2 * a + side) & 1:
+                    continue
+                z = q[:, a] if side == 0 else -q[:, a]
+                for k in range(d):
+                    key = keys[(2 * sample + side) * d + k]
+                    ok = (key != _EMPTY) & on
+                    h = np.where(ok, (key & _LOW32).astype(np.int64), 0)
+                    du = pu - pu[h]
+                    dv = pv - pv[h]
+                    e = np.sqrt(du * du + dv * dv) + r
+                    rh = r[h]
+                    bound = z[h] - np.sqrt(np.maximum(rh * rh - e * e, np.float32(0)))
+                    new[:, 2 * a + side] |= ok & (h != np.arange(n)) & (e < rh) & (z - r > bound)
+        hidden = new
+    return hidden
 
 
 #: The 8 ring samples of cell (i, j), as offsets from (i, j): across each edge, the two samples facing its ends.
@@ -1033,6 +1089,7 @@ def area_estimate_reference(
     _ring_slots=1,
     _cell_seeds="side",
     _extra=None,
+    _hidden_rounds=0,
 ) -> AreaEstimate:
     """The lamp's visible-area estimator (issues 15, 19), as the reference its Warp kernel is tested against.
 
@@ -1110,7 +1167,11 @@ def area_estimate_reference(
         raise ValueError(f"max_seeds: expected an int >= 1, got {max_seeds!r}")
     mask = lamp_mask(lamps)
     d = int(depth_slots)
-    keys, offsets = area_depth_slots(c, r64, grid, depth_slots=d, lamps=lamps, active=active)
+    # Study hook: the depth pass without the spheres one other sphere hides (hidden_spheres).
+    hidden = None
+    if _hidden_rounds:
+        hidden = hidden_spheres(c, r64, grid, depth_slots=d, rounds=_hidden_rounds, lamps=lamps, active=active)
+    keys, offsets = area_depth_slots(c, r64, grid, depth_slots=d, lamps=lamps, active=active, hidden=hidden)
     q, r, axes = _frame(c, r64, grid, on)
     unit = EXACT_UNIT if resolver == "exact" else int(subpoints) ** 2
     n = c.shape[0]
