@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_lamp.bench_porosity import table_1
+from warp_lamp.bench.porosity import table_1
 from warp_lamp.measures import lone_sphere_error
 from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets
 

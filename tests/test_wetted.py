@@ -6,7 +6,7 @@ import warp as wp
 from helpers import DEVICES
 
 import warp_lamp as wl
-from warp_lamp.bench_wetted import lone_sphere_convergence
+from warp_lamp.bench.wetted import lone_sphere_convergence
 from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.lamp import pressure_area
 from warp_lamp.reference.wetted import dilation_table as reference_table

@@ -27,7 +27,7 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_lamp.bench import lattice_grid, markdown_table
+from warp_lamp.bench.common import lattice_grid, markdown_table
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import ShiningLamp
 from warp_lamp.measures import (

@@ -18,7 +18,7 @@ alpha ball rounds the slot's bottom corners; at 8 r it bridges the slot (floor 0
 both sit within 1.5% of the lamp's. YADE's default alpha = 0 stops in CGAL ("Creating an Mpzf from infinity or
 NaN") on 2023.02a, and the job refuses it.
 
-    python -m warp_lamp.bench_engines [--sweep] [--repeats 3] [--json PATH]
+    python -m warp_lamp.bench.engines [--sweep] [--repeats 3] [--json PATH]
 """
 
 from __future__ import annotations
