@@ -22,14 +22,24 @@ ROOT = Path(__file__).resolve().parents[1]
 FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 
 
-def readme_blocks() -> list[tuple[int, str, str | None]]:
-    """(line, code, fragment reason or None) for each ```python block of the README."""
-    text = (ROOT / "README.md").read_text()
+#: Where a reader copies code from: the README and the site's pages (their blocks were the README's).
+SOURCES = [
+    "README.md",
+    "docs/getting-started.md",
+    *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("guide/*.md")),
+]
+
+
+def readme_blocks() -> list[tuple[str, str, str | None]]:
+    """("file:line", code, fragment reason or None) for each ```python block of the README and the site's pages."""
     out = []
-    for m in FENCE.finditer(text):
-        before = text[: m.start()].rstrip("\n").rsplit("\n", 1)[-1]
-        mark = re.fullmatch(r"<!-- fragment: (.+?) -->", before.strip())
-        out.append((text[: m.start()].count("\n") + 1, m.group(1), mark.group(1) if mark else None))
+    for source in SOURCES:
+        text = (ROOT / source).read_text()
+        for m in FENCE.finditer(text):
+            before = text[: m.start()].rstrip("\n").rsplit("\n", 1)[-1]
+            mark = re.fullmatch(r"<!-- fragment: (.+?) -->", before.strip())
+            where = f"{source}:{text[: m.start()].count(chr(10)) + 1}"
+            out.append((where, m.group(1), mark.group(1) if mark else None))
     return out
 
 
@@ -38,13 +48,14 @@ BLOCKS = readme_blocks()
 
 def test_the_readme_has_python_blocks_and_every_fragment_says_why():
     """The blocks are found (the fence pattern is not stale) and a fragment mark gives its reason."""
-    assert len(BLOCKS) >= 5
+    assert sum(b[0].startswith("README.md:") for b in BLOCKS) >= 3
+    assert sum(b[0].startswith("docs/") for b in BLOCKS) >= 5
     for line, code, why in BLOCKS:
-        compile(code, f"README.md:{line}", "exec")  # fragments too: at least they parse
+        compile(code, line, "exec")  # fragments too: at least they parse
         assert why is None or len(why) > 10, line
 
 
-@pytest.mark.parametrize(("line", "code", "why"), BLOCKS, ids=[f"line{b[0]}" for b in BLOCKS])
+@pytest.mark.parametrize(("line", "code", "why"), BLOCKS, ids=[b[0] for b in BLOCKS])
 def test_readme_block_runs_on_its_own(line, code, why, capsys):
     """The block runs in a fresh namespace, with no name it does not define or import, and warns nothing."""
     if why is not None:
@@ -55,7 +66,7 @@ def test_readme_block_runs_on_its_own(line, code, why, capsys):
     namespace = {"__name__": "__readme__"}
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        exec(compile(code, f"README.md:{line}", "exec"), namespace)
+        exec(compile(code, line, "exec"), namespace)
 
 
 ACCURACY = {1: ["21.9", "7.9", "2.5", "0.95"], 0: ["161", "72", "34", "16"]}

@@ -1,4 +1,4 @@
-"""The shining lamp inside DEM engines that are not Warp simulators: YADE and LAMMPS (issue 24).
+"""The shining lamp inside DEM engines that are not Warp simulators: YADE and LAMMPS.
 
 :class:`EngineLamp` is the engine-neutral part (float64 NumPy positions in, forces out, the lamp kept between
 calls); :class:`YadeLamp` and :class:`LammpsLamp` move an engine's arrays through it as fast as the engine allows.
