@@ -65,5 +65,22 @@ def _absolute_bars(app, what, name, obj, options, lines):
             lines[i] = "``".join(bars.sub(r"\\|\1\\|", p) if k % 2 == 0 else p for k, p in enumerate(parts))
 
 
+_SECTIONS = ("Args:", "Arguments:", "Returns:", "Raises:", "Attributes:")
+
+
+def _section_on_first_line(app, what, name, obj, options, lines):
+    """An __init__ docstring that opens with ``Args:`` on its first line is dedented by its later lines' indent, so
+    its entries land level with the header and napoleon reads none of them: indent them under it."""
+    for i, line in enumerate(lines):
+        if line in _SECTIONS and i + 1 < len(lines) and lines[i + 1] and not lines[i + 1].startswith(" "):
+            j = i + 1
+            while j < len(lines) and (lines[j] == "" or lines[j].startswith(" ") or ":" in lines[j].split(" ")[0]):
+                if lines[j]:
+                    lines[j] = "    " + lines[j]
+                j += 1
+
+
 def setup(app):
+    # before napoleon (priority 500), which reads the sections
+    app.connect("autodoc-process-docstring", _section_on_first_line, priority=400)
     app.connect("autodoc-process-docstring", _absolute_bars)

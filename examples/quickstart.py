@@ -2,8 +2,13 @@
 
 The same code as the README's "Quick start" (tests/test_examples.py runs it and checks that the two agree).
 device="cpu" works on every machine; "cuda:0" runs it on a GPU. The first run compiles the kernels (about 10 s,
-cached in ~/.cache/warp); later runs start in about a second.
+cached in ~/.cache/warp); later runs start in about a second. It takes no options.
 """
+
+import argparse
+
+if __name__ == "__main__":  # --help prints the text above instead of running
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
 
 import numpy as np
 import warp as wp
@@ -44,3 +49,6 @@ exact = lamp.counts_numpy() * pressure_area(P, grid)  # the exact float64 forces
 print(f"float32 forces within {np.abs(particle_force.numpy() - exact).max():.2g} N of the exact ones")
 d = lamp.diagnostics(centers, P)
 print(f"resultant {d.force.tolist()} N; skipped: invalid {d.invalid}, outside the grid {d.outside}")
+assert forces.sum(axis=0).tolist() == [0.0, 0.0, 0.0] and 0 < loaded < len(radii)  # balanced, surface only
+assert 0.0 < eps[2, 2, 2] < eps[0, 0, 0] <= 1.0  # denser at the ball's centre than in a corner
+assert np.abs(particle_force.numpy() - exact).max() < 1e-5 and d.invalid == d.outside == 0

@@ -849,6 +849,20 @@ def plot(data: dict, path: str) -> list:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    written = []
+    for suffix, fig in figures(data):
+        out = path if not suffix else str(Path(path).with_name(Path(path).stem + suffix + ".png"))
+        fig.savefig(out, dpi=110)
+        plt.close(fig)
+        written.append(out)
+    return written
+
+
+def figures(data: dict) -> list:
+    """The figures of :func:`plot` as ``(suffix, matplotlib Figure)``: ``""`` for the forces and the summary,
+    ``"-damage"`` for the sections (where the runs kept snapshots)."""
+    import matplotlib.pyplot as plt
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Circle, Polygon
 
@@ -896,12 +910,22 @@ def plot(data: dict, path: str) -> list:
         ax[1, 2].plot(p, [v["fragments"]["in_chips"] for v in s], "s" + style[m], label=f"particles in chips {lab}")
         ax[1, 2].plot(p, [v["fragments"]["loose"] for v in s], "v" + style[m], label=f"loose particles {lab}")
     if cal.get("ucs_Pa"):
-        ax[1, 1].axhline(cal["ucs_Pa"] / 1e6, color="0.6", lw=0.8, label="UCS (calibration)")
+        # The UCS is an order of magnitude above the MSE: a line at it would squash the curves to the floor, so
+        # it is named in the title instead.
+        mse = [r["summary"]["mse_Pa"] for r in runs] + [r["summary"]["mse_sealed_Pa"] for r in runs]
+        ratio = max(mse) / cal["ucs_Pa"]
+        ax[1, 1].set_title(
+            f"mechanical specific energy\n(UCS {cal['ucs_Pa'] / 1e6:.0f} MPa from the calibration: MSE / UCS "
+            f"<= {ratio:.2f})",
+            fontsize=10,
+        )
     for a in ax[1]:
         a.set_xlabel("mud pressure P [MPa]" + (f" (sigma_t = {st / 1e6:.1f} MPa)" if st else ""))
         a.legend(fontsize=7)
     ax[1, 0].set(ylabel="mean force, steady cut [N]", title="forces against pressure")
-    ax[1, 1].set(ylabel="specific energy [MPa]", title="mechanical specific energy")
+    ax[1, 1].set(ylabel="specific energy [MPa]")
+    if not cal.get("ucs_Pa"):
+        ax[1, 1].set_title("mechanical specific energy")
     ax[1, 2].set(ylabel="count", title="damage and fragments")
     cfg = data["config"]
     fig.suptitle(
@@ -911,15 +935,14 @@ def plot(data: dict, path: str) -> list:
         fontsize=10,
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    written = [path]
+    out = [("", fig)]
     snaps = [r for r in runs if "snapshot" in r and not r.get("shared_with")]
     if snaps:
         snaps.sort(key=lambda r: (r["summary"]["pressure_Pa"], r["mode"]))
-        fig, axes = plt.subplots(len(snaps), 1, figsize=(12, 3.2 * len(snaps)), squeeze=False)
+        # Side by side: each section is wider than tall, so a column of them would leave most of the width empty.
+        fig, axes = plt.subplots(1, len(snaps), figsize=(5.4 * len(snaps), 5.0), squeeze=False)
         colours = {0: "0.85", 1: "tab:orange", 2: "tab:green", 3: "0.2"}
-        for a, run in zip(axes[:, 0], snaps, strict=True):
+        for a, run in zip(axes[0], snaps, strict=True):
             sn = run["snapshot"]
             geo = run["geometry"]
             xs = np.array(sn["x_um"]) / 1e3
@@ -946,24 +969,25 @@ def plot(data: dict, path: str) -> list:
             a.axhline(geo["z_cut_m"] * 1e3, color="tab:blue", lw=0.6, ls=":")
             s = run["summary"]
             a.set_title(
-                f'P = {s["pressure_Pa"] / 1e6:g} MPa, surfaces="{run["mode"]}": F_c {s["fc_mean_N"]:.0f} N, '
-                f"MSE {s['mse_Pa'] / 1e6:.0f} MPa, {s['broken_in_cut']} bonds broken, {s['fragments']['chips']} chips "
-                f"(orange), small fragments green, loose particles dark",
+                f'P = {s["pressure_Pa"] / 1e6:g} MPa, surfaces="{run["mode"]}"\nF_c {s["fc_mean_N"]:.0f} N, '
+                f"MSE {s['mse_Pa'] / 1e6:.0f} MPa, {s['broken_in_cut']} bonds broken, {s['fragments']['chips']} chips",
                 fontsize=9,
             )
             size = geo["size_m"]
             a.set_xlim(min(-2.0, corners[3][0] - 0.5), size[0] * 1e3 + 0.5)
             a.set_ylim(-0.3, size[2] * 1e3 + 3.0 * geo["depth_m"] * 1e3)
             a.set_aspect("equal")
-            a.set_ylabel("z [mm]")
-            a.legend(fontsize=7, loc="upper right")
-        axes[-1, 0].set_xlabel(f"x [mm] (section |y - y_c| < {geo['cutter_width_m'] * 500:.2g} mm, the cutter's width)")
+            a.set_xlabel("x [mm]")
+            a.legend(fontsize=7, loc="upper left")
+        axes[0, 0].set_ylabel("z [mm]")
+        fig.suptitle(
+            f"Sections |y - y_c| < {geo['cutter_width_m'] * 500:.2g} mm (the cutter's width): chips orange, small "
+            "fragments green, loose particles dark, intact grey",
+            fontsize=10,
+        )
         fig.tight_layout()
-        p2 = str(Path(path).with_name(Path(path).stem + "-damage.png"))
-        fig.savefig(p2, dpi=110)
-        plt.close(fig)
-        written.append(p2)
-    return written
+        out.append(("-damage", fig))
+    return out
 
 
 def main():

@@ -3,7 +3,7 @@
 Runs inside YADE (Debian's ``yade`` package, 2023.02a), whose interpreter must see warp-lang and warp_lamp::
 
     apt-get install yade
-    python3 -m venv --system-site-packages ~/yade-env && ~/yade-env/bin/pip install -e .   # in this checkout
+    /usr/bin/python3 -m venv --system-site-packages ~/yade-env && ~/yade-env/bin/pip install -e .   # in this checkout
     ~/yade-env/bin/python /usr/bin/yade -j1 -n -x examples/yade_sphere_test.py [--every 10] [--steps 6000]
 
 The lamp is :class:`warp_lamp.engines.YadeLamp`, called by a ``PyRunner`` every ``--every`` iterations (the memo's

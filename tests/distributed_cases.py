@@ -16,7 +16,7 @@ from warp_lamp import LAMPS, LampGrid, ShiningLamp, porosity
 from warp_lamp.distributed import DistributedLamp, enclosing_grid, porosity_distributed
 from warp_lamp.scenes import scene_lattice_box
 
-SPLITS = ("random", "interleaved", "spatial", "lopsided")
+SPLITS = ("random", "interleaved", "spatial", "blocks", "lopsided")
 PRESSURE = (2.0e5, 1.5e5, 3.0e5)
 #: A turned lamp frame, as a unit quaternion (x, y, z, w).
 TURN = (0.1, 0.2, 0.3, float(np.sqrt(0.86)))
@@ -34,8 +34,9 @@ def scenes(kind: str):
 
 def split_rows(kind: str, centers: np.ndarray, rank: int, size: int, seed: int = 3) -> np.ndarray:
     """The global ids of rank ``rank``, in the order the rank holds them: ``random`` (a random share, held in a
-    random order, so the library sorts), ``interleaved`` (i % size), ``spatial`` (slabs along x), ``lopsided``
-    (everything on the last rank; the others hold none)."""
+    random order, so the library sorts), ``interleaved`` (i % size), ``spatial`` (slabs along x), ``blocks`` (a
+    grid of blocks across y and z, as square as the rank count allows), ``lopsided`` (everything on the last rank;
+    the others hold none)."""
     n = len(centers)
     if kind == "random":
         rng = np.random.default_rng(seed)
@@ -48,6 +49,14 @@ def split_rows(kind: str, centers: np.ndarray, rank: int, size: int, seed: int =
         x = centers[:, 0]
         edges = np.quantile(x, np.linspace(0, 1, size + 1)[1:-1])
         return np.flatnonzero(np.searchsorted(edges, x, side="right") == rank)
+    if kind == "blocks":
+        py = max(d for d in range(1, int(np.sqrt(size)) + 1) if size % d == 0)
+        pz = size // py
+        y_edges = np.quantile(centers[:, 1], np.linspace(0, 1, py + 1)[1:-1])
+        z_edges = np.quantile(centers[:, 2], np.linspace(0, 1, pz + 1)[1:-1])
+        by = np.searchsorted(y_edges, centers[:, 1], side="right")
+        bz = np.searchsorted(z_edges, centers[:, 2], side="right")
+        return np.flatnonzero(by * pz + bz == rank)
     if kind == "lopsided":
         return np.arange(n) if rank == size - 1 else np.zeros(0, dtype=np.int64)
     raise ValueError(kind)
@@ -168,6 +177,76 @@ def lamp_cases(coll, *, quick: bool = False) -> list[dict]:
     return out
 
 
+def reach_cases(coll) -> list[dict]:
+    """The reach (each rank seeds, reduces and scatters only the cells its particles can reach) on every split and
+    margin, on a body long in x: counts bitwise equal to one process; with slabs on two or more ranks, fewer cells
+    reduced than the grid holds; particles moved within the margin (a warm update: no escapes, still bitwise);
+    moved past it (escapes counted on every rank), then the reach agreed again (bitwise again); the diagnostics'
+    whole-grid maps; and ``reach="all"``."""
+    out = []
+    rng = np.random.default_rng(21)
+    c = rng.uniform((0.0, 0.0, 0.0), (12.0, 4.0, 3.0), (420, 3))
+    r = rng.uniform(0.2, 0.45, 420)
+    lattice = scene_lattice_box((14, 4, 3), jitter=0.0, rmin=0.5, rmax=0.5)
+    device = coll.device
+
+    def reference(centers, radii, grid, criterion):
+        ref = ShiningLamp(grid, device=device, criterion=criterion)
+        pos, rad = _arrays(centers, radii, np.arange(len(radii)), device, grid)
+        ref.update(pos, rad, in_frame=True)
+        return ref
+
+    for scene_name, (cs, rs), criterion in (
+        ("random", (c, r), 1),
+        ("lattice ties", (lattice.centers, lattice.radii), 0),
+    ):
+        grid = LampGrid.enclosing(cs, rs, cells_per_diameter=4)
+        ref = reference(cs, rs, grid, criterion)
+        for split in SPLITS:
+            rows = split_rows(split, cs, coll.rank, coll.size)
+            for margin in (0, 2):
+                tag = f"reach, {scene_name}, criterion {criterion}, margin {margin} / {split}"
+                lamp = DistributedLamp(grid, coll, criterion=criterion, reach_margin=margin)
+                lamp.set_ids(rows)
+                pos, rad = _arrays(cs, rs, rows, device, grid)
+                lamp.update(pos, rad, in_frame=True)
+                out.append(_compare(f"{tag}: counts", lamp.counts_numpy(), ref.counts_numpy()[rows]))
+                out.append({"case": f"{tag}: no escapes", "ok": lamp.reach_escapes() == 0})
+                est = lamp.estimator
+                if split == "spatial" and coll.size >= 2 and margin == 0:
+                    fewer = est.shared_cells < grid.n_cells and lamp.reduction_bytes == 16 * est.shared_cells
+                    out.append({"case": f"{tag}: fewer cells reduced", "ok": bool(fewer)})
+            diag = lamp.diagnostics()
+            ref_diag = ref.diagnostics()
+            same = all(np.array_equal(diag.lamp.owners[k], ref_diag.owners[k]) for k in LAMPS)
+            out.append({"case": f"reach, {scene_name} / {split}: whole-grid owners", "ok": bool(same)})
+            # A small move (a tenth of a cell) stays within the margin of 2 cells: warm seeds, no escape.
+            step = 0.1 * float(grid.cell[0, 0])
+            moved = cs + np.array([step, -0.5 * step, 0.3 * step])
+            want = reference(moved, rs, grid, criterion).counts_numpy()[rows]
+            mpos, _ = _arrays(moved, rs, rows, device, grid)
+            lamp.update(mpos, rad, in_frame=True)
+            out.append(_compare(f"reach, {scene_name} / {split}: moved within the margin", lamp.counts_numpy(), want))
+            out.append({"case": f"reach, {scene_name} / {split}: no escapes", "ok": lamp.reach_escapes() == 0})
+            # Past the margin: the escapes are counted on every rank; agreed again, the update is bitwise again.
+            far = cs + np.array([1.5, 0.0, 0.0]) * (1.0 if scene_name == "random" else -1.0)
+            ref_far = reference(far, rs, grid, criterion)
+            fpos, _ = _arrays(far, rs, rows, device, grid)
+            lamp.update(fpos, rad, in_frame=True)
+            escaped = lamp.reach_escapes()
+            out.append({"case": f"reach, {scene_name} / {split}: escapes counted", "ok": escaped > 0})
+            lamp.agree_reach()
+            lamp.update(fpos, rad, in_frame=True)
+            got = lamp.counts_numpy()
+            out.append(_compare(f"reach, {scene_name} / {split}: agreed again", got, ref_far.counts_numpy()[rows]))
+            out.append({"case": f"reach, {scene_name} / {split}: none after", "ok": lamp.reach_escapes() == 0})
+            every = DistributedLamp(grid, coll, criterion=criterion, reach="all")
+            every.set_ids(rows)
+            every.update(pos, rad, in_frame=True)
+            out.append(_compare(f"reach all, {scene_name} / {split}", every.counts_numpy(), ref.counts_numpy()[rows]))
+    return out
+
+
 def grid_cases(coll) -> list[dict]:
     """enclosing_grid on each split against LampGrid.enclosing on all particles (bitwise), turned and not."""
     out = []
@@ -213,4 +292,4 @@ def porosity_cases(coll, *, quick: bool = False) -> list[dict]:
 
 
 def all_cases(coll, *, quick: bool = False) -> list[dict]:
-    return lamp_cases(coll, quick=quick) + grid_cases(coll) + porosity_cases(coll, quick=quick)
+    return lamp_cases(coll, quick=quick) + reach_cases(coll) + grid_cases(coll) + porosity_cases(coll, quick=quick)

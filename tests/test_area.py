@@ -970,3 +970,25 @@ def test_reference_refuses_radii_that_do_not_match_the_centres():
     shapes."""
     with pytest.raises(ValueError, match=r"radii: expected shape \(5,\) to match centers, got \(4,\)"):
         visible_area_reference(np.zeros((5, 3)), np.ones(4))
+
+
+def test_area_criterion_warns_of_fines_narrower_than_a_cell(device):
+    """Fines narrower than a cell on a ball's surface: the area criterion warns (and rightly: some fines get no
+    load at all); the same ball without fines warns of nothing."""
+    import warnings
+
+    from warp_lamp.scenes import scene_lattice_ball
+
+    rng = np.random.default_rng(1)
+    ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        wl.lamp_forces(ball.centers, ball.radii, 1e6, criterion="area", device=device)
+    d = rng.normal(size=(30, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    reach = np.linalg.norm(ball.centers - ball.center, axis=1).max() + ball.radii.max()
+    c = np.vstack([ball.centers, ball.center + d * (reach + 2e-4)])
+    r = np.concatenate([ball.radii, np.full(30, 2e-4)])
+    with pytest.warns(UserWarning, match=r"criterion 'area': 30 particles narrower than a cell .* get no load"):
+        f = wl.lamp_forces(c, r, 1e6, criterion="area", device=device)
+    assert np.count_nonzero(np.abs(f[-30:]).sum(axis=1) == 0.0) > 0  # the warning is not idle

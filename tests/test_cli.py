@@ -391,6 +391,15 @@ def test_a_bad_particles_file_is_one_line_with_its_line_and_column(capsys, tmp_p
     assert re.search(r"--particles .*bad\.csv, line 3, column 2: not a number: 'two'", line)
 
 
+def test_a_wall_with_every_particle_behind_it_warns_on_the_command_line(ball_csv):
+    """--wall whose normal points out of the fluid (every particle behind it): a warning naming the wall."""
+    path, centers, radii = ball_csv
+    z0 = float((centers[:, 2] - radii).min()) * 1e3
+    argv = ["--particles", str(path), "--device", "cpu", "--wall", "0", "0", str(z0), "0", "0", "-1"]
+    with pytest.warns(UserWarning, match=r"walls: every particle lies behind wall\(s\) \[0\]"):
+        assert cli.main(argv) == 0
+
+
 def test_walls_and_tolerance_on_the_command_line(capsys, tmp_path, ball_csv, device):
     """--wall bounds the fluid (body plus wall take P times the top window on z, the wall's force is reported, the
     forces equal lamp_forces with the same wall); --tolerance prints its choice and runs it; either beside the

@@ -33,6 +33,7 @@ from warp_lamp.reference.distributed import (
     fixed_units_reference,
     global_keys_reference,
     merge_lists_reference,
+    reach_reference,
     scatter_reference,
     scatter_walls_reference,
 )
@@ -98,7 +99,8 @@ def test_mpi_processes(tmp_path):
     summary = json.loads(out.read_text())
     assert summary["ranks"] == 2 and summary["ok"] and summary["failed"] == 0
     cases = [r["case"] for r in summary["per_rank"][0]["results"]]
-    for needle in ("criterion 0", "criterion 1", "lamps -x +y +z", "area", "follow", "enclosing grid", "porosity"):
+    needles = ("criterion 0", "criterion 1", "lamps -x +y +z", "area", "follow", "enclosing grid", "porosity", "reach")
+    for needle in needles:
         assert any(needle in c for c in cases), needle
     for method in ("voxel", "midpoint", "centroid", "polyhedron", "exact"):
         assert any(f"porosity {method}" in c for c in cases)
@@ -187,6 +189,119 @@ def test_scatter_reference(device):
     assert np.array_equal(counts.numpy().reshape(n, 3), want)
 
 
+@pytest.mark.parametrize("criterion", [0, 1])
+def test_reach_box_holds_every_lit_cell(device, criterion):
+    """dist_reach's box per grid holds every cell the spheres light (brute force over every cell, float64), and is
+    at most one cell wider on each side; a grid whose lamps are off is left unreached."""
+    rng = np.random.default_rng(5 + criterion)
+    grid = LampGrid((0.0, 0.0, 0.0), (4.0, 3.0, 3.5), (0.25, 0.3, 0.2))
+    c = rng.uniform(0.8, 2.6, (12, 3))
+    r = rng.uniform(0.1, 0.4, 12)
+    want = reach_reference(c, r, grid.corner, grid.cell, grid.counts, criterion)
+    origin, rotation = grid.pose_arrays(device, in_frame=True)
+    particles = lamp_kernels.LampParticles()
+    particles.positions = wp.array(c.astype(np.float32), dtype=wp.vec3, device=device)
+    particles.radii = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
+    particles.active = wp.empty(0, dtype=wp.int32, device=device)
+    particles.n = 12
+    for mask in (0b111111, 0b110011):
+        big = np.iinfo(np.int32).max
+        box = wp.array(np.array([big, -1, big, -1] * 3, dtype=np.int32), dtype=wp.int32, device=device)
+        wp.launch(
+            dist_kernels.dist_reach,
+            dim=12,
+            inputs=[grid.params(origin, rotation), particles, criterion, mask],
+            outputs=[box],
+            device=device,
+        )
+        got = box.numpy().astype(np.int64).reshape(3, 4)
+        ref = want.reshape(3, 4)
+        for a in range(3):
+            if (mask >> (2 * a)) & 3 == 0:
+                assert list(got[a]) == [big, -1, big, -1]
+                continue
+            assert ref[a, 1] >= 0  # the spheres light this grid
+            lo, hi = got[a, [0, 2]], got[a, [1, 3]]
+            assert np.all(lo <= ref[a, [0, 2]]) and np.all(hi >= ref[a, [1, 3]])
+            assert np.all(lo >= ref[a, [0, 2]] - 1) and np.all(hi <= ref[a, [1, 3]] + 1)
+
+
+def test_window_scatter_reference(device):
+    """dist_pack and dist_scatter_window against the scatter's reference: the window's shared cells decided by the
+    reduced keys, its other cells by the rank's own key (no other rank reaches them), nothing outside it."""
+    rng = np.random.default_rng(8)
+    grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.25)
+    cells = grid.n_cells
+    n = 40
+    gids = np.sort(rng.choice(1000, size=n, replace=False)).astype(np.int32)
+    caller = rng.permutation(n).astype(np.int32)
+    rect = np.array([[1, 6, 2, 5], [0, int(grid.counts[1, 0]), 3, 4], [2, 3, 0, int(grid.counts[2, 1])]])
+    inside = np.zeros(cells, dtype=bool)
+    offset = 0
+    for a in range(3):
+        nu, nv = (int(x) for x in grid.counts[a])
+        box = np.zeros((nv, nu), dtype=bool)
+        box[rect[a, 2] : rect[a, 2] + rect[a, 3], rect[a, 0] : rect[a, 0] + rect[a, 1]] = True
+        inside[offset : offset + nu * nv] = box.reshape(-1)
+        offset += nu * nv
+    keys = ordered_key(rng.normal(size=2 * cells), rng.integers(0, n, 2 * cells))
+    keys[rng.random(2 * cells) < 0.2] = EMPTY_KEY
+    keys[np.repeat(~inside, 2)] = EMPTY_KEY  # the rank's keys are empty outside its window
+    shared = np.flatnonzero(rng.random(cells) < 0.5).astype(np.int32)
+    mine = global_keys_reference(keys, gids)
+    # What the other ranks offer on the shared cells: some beat this rank, some not.
+    others = mine.copy()
+    beat = rng.random(2 * cells) < 0.4
+    others[beat] = ordered_key(rng.normal(size=beat.sum()), rng.integers(1000, 2000, beat.sum()))
+    reduced = np.where(np.repeat(inside, 2), mine, EMPTY_KEY)
+    both = np.repeat(np.isin(np.arange(cells), shared), 2)
+    reduced[both] = np.minimum(others[both], mine[both])
+    axis = np.concatenate([np.full(int(grid.counts[a, 0] * grid.counts[a, 1]), a) for a in range(3)])
+    want = scatter_reference(reduced, keys, gids, caller, axis, n)
+    assert np.abs(want).sum() > 10
+    origin, rotation = grid.pose_arrays(device, in_frame=True)
+    params = grid.params(origin, rotation)
+    keys_wp = wp.array(keys, dtype=wp.uint64, device=device)
+    gids_wp = wp.array(gids, dtype=wp.int32, device=device)
+    packed = wp.empty(2 * len(shared), dtype=wp.uint64, device=device)
+    wp.launch(
+        dist_kernels.dist_pack,
+        dim=len(shared),
+        inputs=[keys_wp, gids_wp, wp.array(shared, dtype=wp.int32, device=device), 0],
+        outputs=[packed],
+        device=device,
+    )
+    pairs = np.stack([2 * shared, 2 * shared + 1], axis=1).reshape(-1)
+    assert np.array_equal(packed.numpy(), mine[pairs])
+    # The all-reduce MIN with the other ranks' offers.
+    packed = wp.array(np.minimum(packed.numpy(), others[pairs]), dtype=wp.uint64, device=device)
+    slot_of = np.full(cells, -1, dtype=np.int32)
+    slot_of[shared] = np.arange(len(shared))
+    win = dist_kernels.ReachWindow()
+    sizes = rect[:, 1] * rect[:, 3]
+    win.i0, win.ni = wp.vec3i(*(int(x) for x in rect[:, 0])), wp.vec3i(*(int(x) for x in rect[:, 1]))
+    win.j0, win.nj = wp.vec3i(*(int(x) for x in rect[:, 2])), wp.vec3i(*(int(x) for x in rect[:, 3]))
+    win.first = wp.vec3i(0, int(sizes[0]), int(sizes[0] + sizes[1]))
+    win.n_cells = int(sizes.sum())
+    counts = wp.zeros(3 * n, dtype=wp.int64, device=device)
+    wp.launch(
+        dist_kernels.dist_scatter_window,
+        dim=win.n_cells,
+        inputs=[
+            params,
+            win,
+            keys_wp,
+            gids_wp,
+            wp.array(caller, dtype=wp.int32, device=device),
+            wp.array(slot_of, dtype=wp.int32, device=device),
+            packed,
+        ],
+        outputs=[counts],
+        device=device,
+    )
+    assert np.array_equal(counts.numpy().reshape(n, 3), want)
+
+
 def test_unflip_restores_the_keys(device):
     """dist_unflip after keys flipped for an int64 reduction gives the unflipped keys back, EMPTY included."""
     rng = np.random.default_rng(11)
@@ -219,15 +334,23 @@ def test_scatter_walls_reference(device):
     reduced[rng.random(2 * cells) < 0.1] = EMPTY_KEY
     walls = [((0.0, 0.0, 1.0), (0.0, 0.0, 1.0)), ((2.2, 0.0, 0.0), (-1.0, 0.3, 0.2))]
     frame = LampFrame(grid, device, walls=check_walls(walls))
+    frame.launch_walls(True)
     rays, view = frame.rays(True), frame.walls_view(True)
     red = wp.array(reduced, dtype=wp.uint64, device=device)
     walled = wp.zeros(2 * cells, dtype=wp.int32, device=device)
-    wp.launch(lamp_kernels.lamp_walled_owners, dim=cells, inputs=[rays, red, view], outputs=[walled], device=device)
-    walled = walled.numpy()
+    recoils = wp.zeros(2 * cells, dtype=wp.int32, device=device)
+    wp.launch(
+        lamp_kernels.lamp_walled_owners,
+        dim=cells,
+        inputs=[rays, red, view, 63],
+        outputs=[walled, recoils],
+        device=device,
+    )
+    walled, recoils = walled.numpy(), recoils.numpy()
     mine = (reduced == global_keys_reference(keys, gids)) & (reduced != EMPTY_KEY)
     assert (walled <= -2).sum() > 20 and ((walled >= 0) & mine).sum() > 20 and ((walled == -1) & mine).sum() > 5
     axis = np.concatenate([np.full(int(grid.counts[a, 0] * grid.counts[a, 1]), a) for a in range(3)])
-    want, want_walls = scatter_walls_reference(reduced, keys, gids, caller, axis, n, walled, len(walls))
+    want, want_walls = scatter_walls_reference(reduced, keys, gids, caller, axis, n, walled, len(walls), recoils)
     counts = wp.zeros(3 * n, dtype=wp.int64, device=device)
     wall_counts = wp.zeros(3 * len(walls), dtype=wp.int64, device=device)
     wp.launch(
@@ -240,6 +363,7 @@ def test_scatter_walls_reference(device):
             wp.array(caller, dtype=wp.int32, device=device),
             red,
             view,
+            63,
         ],
         outputs=[counts, wall_counts],
         device=device,
@@ -345,12 +469,23 @@ def test_or_gathered(device):
 
 
 def test_reduction_bytes():
-    """Criteria 0 and 1 send the whole key array (16 bytes per cell); the area criterion its D-slot corner lists and
-    16 bytes per particle of the body; follow adds the box's 24 bytes."""
+    """Criteria 0 and 1 send the whole key array (16 bytes per cell) with follow, and only the cells ranks share
+    with the reach (none on one rank); the area criterion its D-slot corner lists and 16 bytes per particle of the
+    body; follow adds the box's 24 bytes; a bad reach is refused."""
     grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
     lamp = DistributedLamp(grid, None, follow=True)
     lamp.set_ids(np.arange(10))
     assert lamp.reduction_bytes == 16 * grid.n_cells + 24
+    # One rank shares no cell with another: with the reach, nothing is reduced.
+    alone = DistributedLamp(grid, None, reach_margin=0)
+    alone.set_ids(np.arange(3))
+    alone.update(wp.array(np.full((3, 3), 1.0, np.float32), dtype=wp.vec3), wp.full(3, 0.4, dtype=wp.float32))
+    assert alone.estimator.windowed and alone.reduction_bytes == 0
+    assert 0 < alone.estimator.window_cells < grid.n_cells
+    with pytest.raises(ValueError, match="reach: expected"):
+        DistributedLamp(grid, None, reach="some")
+    with pytest.raises(ValueError, match="reach_margin"):
+        DistributedLamp(grid, None, reach_margin=-1)
     area = DistributedLamp(grid, None, criterion="area", depth_slots=2)
     area.set_ids(np.array([3, 90]))
     assert area.reduction_bytes == 2 * 2 * 8 * grid.n_samples + 16 * 91

@@ -349,9 +349,13 @@ def test_bench_engines_skips_without_yade(monkeypatch):
 
     monkeypatch.delenv("WARP_LAMP_YADE", raising=False)
     monkeypatch.setattr(bench_engines.shutil, "which", lambda name: None)
-    result = bench_engines.bench_engines(progress=False)
+    result = bench_engines.bench_engines(progress=False, deme=False)
     assert result == {"skipped": "YADE not installed (apt-get install yade)"}
     assert "skipped (YADE not installed" in bench_engines.format_engines(result)
+    monkeypatch.setattr(bench_engines, "DEME_SCRIPT", ROOT / "no-such-script.py")  # never a 7-minute run here
+    with_deme = bench_engines.bench_engines(progress=False)  # DEME's rows come from a result file
+    assert with_deme["skipped"] == result["skipped"] and "deme" in with_deme
+    assert "DEM-Engine" in bench_engines.format_engines(with_deme)
     with pytest.raises(FileNotFoundError, match="yade"):
         bench_engines.yade_alpha_caps(scene_lattice_ball(), [1.0], [0.5])
 

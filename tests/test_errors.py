@@ -449,3 +449,66 @@ def test_every_argument_can_be_passed_by_name():
                 assert inspect.Parameter.POSITIONAL_ONLY not in kinds, f"{info.name}.{f.__qualname__}"
                 checked += 1
     assert checked > 300
+
+
+def test_porosity_shape_with_a_bool_is_refused(device):
+    """shape=(True, 4, 4) is refused naming shape: a bool is not a cell count, though NumPy would promote it."""
+    c, r = np.array([[0.5, 0.5, 0.5]]), np.array([0.2])
+    for shape in ((True, 4, 4), [4, np.bool_(True), 4], True):
+        with pytest.raises(ValueError, match=r"^shape: expected 3 integers"):
+            wl.porosity(c, r, np.zeros(3), np.ones(3), shape, device=device)
+    assert wl.porosity(c, r, np.zeros(3), np.ones(3), (1, 4, 4), device=device).shape == (1, 4, 4)
+
+
+class _FakeLammps:
+    """Just enough of a ``lammps.lammps`` for LammpsLamp's checks: one rank, two atoms, groups ``all`` and
+    ``top`` (with the None slots LAMMPS' available_ids returns), and the commands it was sent."""
+
+    def __init__(self):
+        self.commands = []
+        x, r = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0]]), np.array([0.1, 0.1])
+        self.numpy = type("N", (), {"extract_atom": staticmethod(lambda name: {"x": x, "radius": r}.get(name))})()
+
+    def extract_setting(self, name):
+        return {"world_size": 1, "nlocal": 2}[name]
+
+    def available_ids(self, category):
+        return ["all", "top", None, None] if category == "group" else []
+
+    def command(self, text):
+        self.commands.append(text)
+
+
+def test_lammps_lamp_unknown_group_is_named():
+    """LammpsLamp(group='nosuch') raises our one-line error naming group and listing the groups there are,
+    before it sends LAMMPS anything (a stand-in here; the real LAMMPS too where its module loads)."""
+    from warp_lamp.engines import LammpsLamp
+
+    fake = _FakeLammps()
+    with pytest.raises(ValueError, match=r"^group: LAMMPS has no group 'nosuch'; its groups: all, top$"):
+        LammpsLamp(fake, 1.0, group="nosuch", device="cpu")
+    with pytest.raises(ValueError, match=r"^group: expected the name of a LAMMPS group, got 3"):
+        LammpsLamp(fake, 1.0, group=3, device="cpu")
+    assert fake.commands == []
+    try:
+        from warp_lamp.engines import open_lammps
+
+        lmp = open_lammps()
+    except (ImportError, OSError):
+        return
+    try:
+        lmp.commands_string("units si\natom_style sphere\nregion box block -1 1 -1 1 -1 1\ncreate_box 1 box")
+        lmp.create_atoms(2, [1, 2], [1, 1], [0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+        lmp.numpy.extract_atom("radius")[:2] = 0.1
+        with pytest.raises(ValueError, match=r"^group: LAMMPS has no group 'nosuch'; its groups: all$"):
+            LammpsLamp(lmp, 1.0, group="nosuch", device="cpu")
+    finally:
+        lmp.close()
+
+
+def test_a_huge_probe_radius_is_blamed_on_probe_radius(device):
+    """A probe radius 200 particle diameters wide makes a voxel grid past int32: the error names probe_radius,
+    not the grid's voxel count."""
+    ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    with pytest.raises(ValueError, match=r"^probe_radius: 1 takes a margin of 1 on every side"):
+        wl.lamp_forces(ball.centers, ball.radii, 1e6, surfaces="all", probe_radius=1.0, device=device)

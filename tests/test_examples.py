@@ -11,6 +11,7 @@ import importlib.util
 import json
 import re
 import runpy
+import subprocess
 import sys
 from pathlib import Path
 
@@ -328,9 +329,11 @@ def test_frames_block_example_is_the_benchmarks_experiment(capsys):
 
 
 def quickstart_code() -> str:
-    """examples/quickstart.py without its module docstring."""
+    """examples/quickstart.py without its module docstring and its --help preamble (up to the first blank line
+    after its parse_args)."""
     text = (ROOT / "examples" / "quickstart.py").read_text()
-    return text[text.index('"""', 3) + 3 :].lstrip("\n")
+    text = text[text.index('"""', 3) + 3 :].lstrip("\n")
+    return text[text.index("\n\n", text.index("parse_args()")) :].lstrip("\n")
 
 
 def test_readme_quick_start_is_the_example_verbatim():
@@ -341,9 +344,24 @@ def test_readme_quick_start_is_the_example_verbatim():
     assert block == quickstart_code()
 
 
-def test_quickstart_runs_and_its_forces_balance(capsys):
+def test_quickstart_help_prints_help_and_runs_nothing():
+    """python examples/quickstart.py --help prints its description and exits 0 without computing anything."""
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "quickstart.py"), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("usage: quickstart.py [-h]") and "Quick start: lamp forces" in proc.stdout
+    assert "particles" not in proc.stdout.split("It takes no options.")[1]  # the example itself did not run
+
+
+def test_quickstart_runs_and_its_forces_balance(capsys, monkeypatch):
     """The quick start runs on the CPU as written: forces sum to zero, porosity is physical, float32 forces are
     within rounding of the exact ones, and nothing is skipped."""
+    monkeypatch.setattr(sys, "argv", ["quickstart.py"])
     runpy.run_path(str(ROOT / "examples" / "quickstart.py"), run_name="__main__")
     out = capsys.readouterr().out
     assert "sum of forces [0.0, 0.0, 0.0] N" in out

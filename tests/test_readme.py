@@ -1,11 +1,12 @@
 """Every Python block of README.md runs as written, each on its own (a reader copies one block, not the page), in
-a fresh namespace; a block that cannot run alone says so with ``<!-- fragment: why -->`` on the line before it,
-and still compiles.
+a fresh namespace, and ends with an assert of its result (a block that runs but computes nonsense fails); a block
+that cannot run alone says so with ``<!-- fragment: why -->`` on the line before it, and still compiles.
 
 The README's measured figures that any machine can recompute (the CPU ones; GPU timings live in result files):
 each is asserted to its printed precision, so that a change that moves one fails here instead of silently making
 the README wrong. bench/mutation/README_CLAIMS.md lists every figure and where its evidence is."""
 
+import ast
 import re
 import warnings
 from pathlib import Path
@@ -53,6 +54,14 @@ def test_the_readme_has_python_blocks_and_every_fragment_says_why():
     for line, code, why in BLOCKS:
         compile(code, line, "exec")  # fragments too: at least they parse
         assert why is None or len(why) > 10, line
+
+
+def test_every_runnable_block_ends_by_checking_its_result():
+    """Each block that runs ends with an assert (of what it computed), so that its exit status means something."""
+    for line, code, why in BLOCKS:
+        if why is None:
+            last = ast.parse(code).body[-1]
+            assert isinstance(last, ast.Assert), f"{line}: the block does not end with an assert"
 
 
 @pytest.mark.parametrize(("line", "code", "why"), BLOCKS, ids=[b[0] for b in BLOCKS])
@@ -112,3 +121,12 @@ def test_voxel_column_of_table_1():
     for r, rms, err in ((10, "4190.3", "0.23"), (25, "65450.8", "0.04"), (1, "4.4", "30.9"), (5, "523.2", "0.98")):
         assert agrees(rows[r]["voxel_rms"], rms), (r, rows[r])
         assert agrees(100 * rows[r]["voxel_rms_error"], err), (r, rows[r])
+
+
+def test_yade_recipe_makes_its_venv_from_debians_python():
+    """Every YADE recipe (README, docs/engines.md, the example, the adapter) makes the venv with /usr/bin/python3:
+    /usr/bin/yade runs Debian's Python, and a python3 first on PATH (pyenv, conda) would not load YADE."""
+    for name in ("README.md", "docs/engines.md", "examples/yade_sphere_test.py", "warp_lamp/engines/yade.py"):
+        text = (ROOT / name).read_text()
+        venvs = re.findall(r"(\S+) -m venv --system-site-packages ~/yade-env", text)
+        assert venvs and set(venvs) == {"/usr/bin/python3"}, (name, venvs)

@@ -892,3 +892,23 @@ def test_walls_cpu_and_cuda_bitwise_equal():
                 np.testing.assert_array_equal(cpu.owners[a], gpu.owners[a])
                 np.testing.assert_array_equal(cpu.wall_owners[a], gpu.wall_owners[a])
                 np.testing.assert_array_equal(cpu.thin_faces[a], gpu.thin_faces[a])
+
+
+@pytest.mark.parametrize("scale", [1000.0, 7.0, 1e-3])
+def test_wetted_forces_do_not_depend_on_the_unit_of_length(device, scale):
+    """A lattice ball with rho exactly two voxels (ties everywhere) in metres and rescaled, with P rescaled to
+    match: the same forces (a tie decided the other way moves a particle by a whole cell's P A, 7% here) and the
+    same enclosing grid, in every mode."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
+    c, r = ball.centers, ball.radii
+    rho = float(r.mean())  # = 2 h at 4 cells per diameter
+    for kw in ({"surfaces": "all", "probe_radius": rho}, {}):
+        base = wl.lamp_forces(c, r, 1e6, device=device, **kw)
+        kws = {k: (v * scale if k == "probe_radius" else v) for k, v in kw.items()}
+        f = wl.lamp_forces(c * scale, r * scale, 1e6 / scale**2, device=device, **kws)
+        np.testing.assert_allclose(f, base, rtol=1e-12, atol=1e-12 * np.abs(base).max())
+        g1 = wl.LampGrid.enclosing(c, r, probe_radius=kw.get("probe_radius", 0.0))
+        gs = wl.LampGrid.enclosing(c * scale, r * scale, probe_radius=kws.get("probe_radius", 0.0))
+        np.testing.assert_array_equal(gs.counts, g1.counts)

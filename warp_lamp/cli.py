@@ -325,6 +325,23 @@ _RUN_OPTIONS = [
         ),
     ),
     (
+        ("--forces",),
+        "forces",
+        None,
+        dict(
+            metavar="FILE",
+            help="write each particle's force, in the particles' order, for an engine to read back: CSV "
+            "(id,fx,fy,fz) or, for .dump/.lammpstrj, one LAMMPS dump timestep (ITEM: ATOMS id fx fy fz; read_dump "
+            "FILE STEP fx fy fz box no); ids are the file's, else 1 .. N; the header gives the unit",
+        ),
+    ),
+    (
+        ("--forces-format",),
+        "forces_format",
+        None,
+        dict(choices=("csv", "lammps"), help="--forces: the file's format (default: from its extension)"),
+    ),
+    (
         ("--vtk",),
         "vtk",
         None,
@@ -377,7 +394,7 @@ def _group_of(dest: str) -> str:
         return "particles (default: the built-in SphereTest specimen)"
     if dest in ("grid", "box", "method", "subdivisions"):
         return "porosity grid"
-    if dest in ("json", "vtk", "repeats"):
+    if dest in ("json", "vtk", "repeats", "forces", "forces_format"):
         return "output"
     if dest in ("pressure", "pressures", "stress"):
         return "load"
@@ -407,7 +424,8 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
         help="speed against error, on every device present, with peers (bench lamp, porosity, tolerance, engines)",
         description="Time the lamp (bench lamp) or the porosity methods (bench porosity) against their error; "
         "check tolerance='s choices (bench tolerance); time other engines' pressure boundaries (bench engines). "
-        "bench lamp takes about a minute with --quick on a CPU and about 10 minutes on a GPU; bench porosity "
+        "bench lamp --quick takes about 40 s of CPU (a minute the first time, compiling) and about 10 minutes on "
+        "a GPU; bench porosity "
         "--paper about 4 minutes on 2 CPU cores.",
         formatter_class=_Formatter,
     )
@@ -427,7 +445,7 @@ def _parser() -> tuple[argparse.ArgumentParser, dict]:
     bench.add_argument("--paper", action="store_true", help="porosity: also reproduce the paper's Table 1 and 3.2")
     bench.add_argument("--target", action="store_true", help="porosity: also time the 1 mm, 0.1 mm target scene")
     bench.add_argument("--histograms", metavar="PATH", help="porosity --paper: histograms as a PNG (needs matplotlib)")
-    bench.add_argument("--quick", action="store_true", help="a CPU-sized subset, under a minute")
+    bench.add_argument("--quick", action="store_true", help="a CPU-sized subset (about 40 s of CPU)")
     bench.add_argument("--device", action="append", help="a Warp device to time (repeatable; default: all)")
     bench.add_argument("--json", metavar="PATH", help="write the results as JSON (- for standard output)")
     bench.add_argument("--plot", metavar="PATH", help="lamp: time against error as a PNG (needs matplotlib)")
@@ -673,6 +691,10 @@ def _check_run(args) -> None:
             raise CliError(f"--box: X1 Y1 Z1 must exceed X0 Y0 Z0; axis {'xyz'[k]} has {hi[k]:g} <= {lo[k]:g}")
     if args.json and args.json != "-":
         _check_output("--json", args.json)
+    if args.forces_format is not None and args.forces is None:
+        raise CliError("--forces-format is the format of --forces FILE: add --forces, or leave --forces-format out")
+    if args.forces:
+        _check_output("--forces", args.forces)
     if args.vtk:
         _check_output("--vtk", args.vtk, directory=True)
         _need_extra("--vtk", "pyevtk", "vtk")
@@ -692,9 +714,7 @@ def _load_particles(args) -> None:
     if not os.path.isfile(args.particles):
         raise CliError(f"--particles {args.particles}: no such file")
     try:
-        c, r, ids, info = read_particles(
-            args.particles, fmt=args.format, timestep=args.timestep, scale=args.scale or 1.0
-        )
+        c, r, ids, info = read_particles(args.particles, fmt=args.format, timestep=args.timestep, scale=args.scale)
     except (ParticleFileError, ValueError) as e:
         raise CliError(f"--particles {e}") from None
     if len(r) == 0:
@@ -859,7 +879,10 @@ def _lamp_options(args) -> dict:
         if dest in args.given or (dest in args.chosen):
             options[dest] = getattr(args, dest)
     if args.walls:
-        options["walls"] = [(w[:3], w[3:]) for w in args.walls]
+        # The wall's point is in the particles' units: the reader's factor to metres applies to it too (the
+        # distance between a body and a wall decides whether it rests there).
+        scale = getattr(getattr(args, "info", None), "scale", 1.0)
+        options["walls"] = [([x * scale for x in w[:3]], w[3:]) for w in args.walls]
     if args.surfaces == "all":
         options["surfaces"] = "all"
         options["probe_radius"] = args.probe_radius
@@ -898,6 +921,7 @@ def _run(args) -> int:
 
     from warp_lamp import LampGrid, ShiningLamp, porosity
     from warp_lamp.frames import lamp_stress_frame
+    from warp_lamp.lamp import _warn_fines
     from warp_lamp.measures import envelope_stress
     from warp_lamp.scenes import scene_sphere_specimen
 
@@ -943,7 +967,16 @@ def _run(args) -> int:
         centers, body_center = centers - shift, np.zeros(3)
     probe = args.probe_radius if args.surfaces == "all" else 0.0
     grid = LampGrid.enclosing(centers, radii, cells_per_diameter=cpd, rotation=rotation, probe_radius=probe)
+    _warn_fines(radii, grid, args.criterion)
     lamp = ShiningLamp(grid, device=device, **_lamp_options(args))
+    if args.walls:
+        import warnings
+
+        from warp_lamp.validate import walls_behind_message
+
+        message = walls_behind_message(centers, radii, lamp.frame.wall_planes)
+        if message:
+            warnings.warn(message, stacklevel=2)
     if args.frames > 1:
         pos = wp.array(centers.astype(np.float32), dtype=wp.vec3, device=device)
         in_frame = False
@@ -1033,11 +1066,14 @@ def _run(args) -> int:
         say(f"pressure   P = {_shown(args.pressures)} Pa along x, y, z on {lamps}, {how}")
     else:
         say(f"pressure   P = {pressure:.6g} Pa on {lamps}, {how}")
-    unit = "mm" if args.info is None else ""
-    k = 1e3 if args.info is None else 1.0
+    length, force, moment_unit = _units(args)
+    # The keys keep their _N names for old readers; these say what the numbers are in.
+    report["units"] = {"length": length, "force": force, "moment": moment_unit, "pressure": "Pa"}
+    k = 1e3 if args.info is None else 1.0  # the built-in specimen's lengths are shown in mm
+    shown = "mm" if args.info is None else length
     say(
-        f"grid       cells of {h * k:.4g}{' ' + unit if unit else ''} ({cpd:g} per mean particle diameter of "
-        f"{2 * radii.mean() * k:.3g}{' ' + unit if unit else ''}); three grids of {nu} x {nv} cells, "
+        f"grid       cells of {h * k:.4g} {shown} ({cpd:g} per mean particle diameter of "
+        f"{2 * radii.mean() * k:.3g} {shown}); three grids of {nu} x {nv} cells, "
         f"{grid.n_cells:,} cells, {grid.nbytes:,} bytes"
     )
     say(f"device     {device.alias} ({device.name})")
@@ -1046,35 +1082,37 @@ def _run(args) -> int:
     say(f"surface    {report['lit_particles']:,} particles lit{per_lamp}")
     balanced = args.lamps == "all" and not args.walls
     say(
-        f"balance    sum of forces = {report['force_sum_N']} N"
+        f"balance    sum of forces = {report['force_sum_N']} {force}"
         + (" (exact zero by construction)" if balanced else " (only axes with both lamps on and no wall balance)")
     )
     for k, fw in enumerate(report.get("wall_forces_N", [])):
-        say(f"wall {k}     force on the wall {np.round(fw, 6).tolist()} (the reaction of the rays it stopped)")
+        say(f"wall {k}     force on the wall {np.round(fw, 6).tolist()} {force} (the reaction of the rays it stopped)")
     if R is not None:
-        say(f"moment     |M| / (P pi R^3) = {report['moment_over_PpiR3']:.3e}")
+        say(f"moment     |M| / (P pi R^3) = {report['moment_over_PpiR3']:.3e} (dimensionless)")
     else:
-        say(f"moment     |M| about the centre of the centres' box = {np.linalg.norm(moment):.4g}")
+        say(f"moment     |M| about the centre of the centres' box = {np.linalg.norm(moment):.4g} {moment_unit}")
     fm = report["force_N"]
     if lit_mag.size:
         say(
             f"forces     |F| on lit particles: min {fm['min_lit']:.4g}, mean {fm['mean_lit']:.4g}, max "
-            f"{fm['max']:.4g}; total |F| {fm['total']:.4g}" + (" N" if args.info is None else "")
+            f"{fm['max']:.4g}; total |F| {fm['total']:.4g} {force}"
         )
     else:
         say("forces     no particle is lit: the lamp loads nothing (is the grid finer than the body?)")
+    if args.info is not None:
+        say(f"units      {_units_note(args)}")
     if R is not None:
         say(
-            f"stress     mean -tr(sigma)/3P = {report['mean_stress_over_P']:.4f}  "
-            "(forces act at particle centres, inside the envelope: expect a little under 1)"
+            f"stress     mean -tr(sigma)/3P = {report['mean_stress_over_P']:.4f} (dimensionless; "
+            "forces act at particle centres, inside the envelope: expect a little under 1)"
         )
-    say(f"skipped    invalid {invalid}, outside the grid {outside}")
+    say(f"skipped    particles invalid {invalid}, outside the grid {outside}")
     if args.want_porosity:
         report["porosity"], eps, box = _porosity(args, centers, radii, body_center, R, shift, device, porosity)
         pr = report["porosity"]
         say(
             f"porosity   {pr['method']} on {pr['shape'][0]} x {pr['shape'][1]} x {pr['shape'][2]} cells: min "
-            f"{pr['min']:.3f}, mean {pr['mean']:.3f}, max {pr['max']:.3f}"
+            f"{pr['min']:.3f}, mean {pr['mean']:.3f}, max {pr['max']:.3f} (void fraction)"
         )
     if args.vtk:
         from warp_lamp.export import write_vtk_particles, write_vtk_porosity
@@ -1097,11 +1135,49 @@ def _run(args) -> int:
             f"wrote      {a} (per-particle radius, force, lit) and {b} ({report['porosity']['method']} porosity, "
             f"{tuple(report['porosity']['shape'])} cells)"
         )
+    if args.forces:
+        from warp_lamp.export import write_forces
+
+        world = centers + shift
+        ids = None if args.info is None else args.ids
+        written = write_forces(
+            args.forces,
+            f,
+            ids=ids,
+            fmt=args.forces_format,
+            unit=force.replace("\u00b7", "*").replace("\u00b2", "^2"),
+            timestep=0 if args.info is None or args.info.timestep is None else args.info.timestep,
+            box=(np.min(world - radii[:, None], axis=0), np.max(world + radii[:, None], axis=0)),
+        )
+        idw = "the file's ids" if ids is not None else "ids 1 .. N in the particles' order"
+        say(f"wrote      {written} ({n:,} forces in {force}, {idw})")
     if args.json:
         _write_json(args.json, report)
         if args.json != "-":
             say(f"wrote      {args.json}")
     return 0
+
+
+def _units(args) -> tuple[str, str, str]:
+    """The run's length, force and moment units, in words. Pressure is in Pa, so forces are in Pa x length^2:
+    newtons only where the lengths are known to be metres (the built-in specimen, a file that names its unit, or
+    --scale); otherwise the file's own length unit L, and forces in Pa*L^2."""
+    if args.info is None or args.info.length_unit == "m":
+        return "m", "N", "N\u00b7m"
+    return "L", "Pa\u00b7L\u00b2", "Pa\u00b7L\u00b3"
+
+
+def _units_note(args) -> str:
+    """One line on the units of a user's file: what they are, and how to get newtons."""
+    if args.info.length_unit == "m":
+        return "lengths in metres and pressure in Pa: forces in N"
+    r = float(np.median(args.radii))
+    look = "millimetres" if 0.05 <= r < 100.0 else ("metres" if 1e-5 <= r < 0.05 else "neither metres nor millimetres")
+    hint = "; for millimetres, 1 Pa\u00b7mm\u00b2 = 1e-6 N" if look == "millimetres" else ""
+    return (
+        f"the file does not name its length unit (L); the radii look like {look}: forces are in Pa\u00b7L\u00b2 "
+        f"(N only if L is metres{hint}); give --scale (0.001 for millimetres) to work in metres and newtons"
+    )
 
 
 def _porosity(args, centers, radii, body_center, R, shift, device, porosity) -> tuple[dict, np.ndarray, tuple]:

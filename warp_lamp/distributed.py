@@ -25,6 +25,19 @@ details make that hold:
   to this rank exactly when the reduced key equals the rank's own key with its global id: no map from global ids
   back to local indices is needed (no array of N_global entries, no search).
 
+**The reach** (criteria 0 and 1 without walls or ``follow``; ``reach="auto"``, the default): a rank's particles
+light only some cells, so each rank seeds, converts and scatters only a rectangle of cells per grid (its particles'
+footprint box, widened by ``reach_margin`` cells), and all-reduces only the cells that two or more ranks'
+rectangles hold: a cell that one rank alone can reach has that rank's key as its reduced key. A rank of an x-slab
+still reduces the whole x grid (every slab lights it) but only the strips of the y and z grids it shares with its
+neighbours. The rectangles are agreed (an all-gather of 12 integers per rank) by the first update after
+:meth:`DistributedLamp.set_ids` and by :meth:`DistributedLamp.agree_reach`, both outside any capture: a captured
+update replays fixed-size kernels and one fixed-size all-reduce, never a host synchronisation. Each update counts,
+on the device, the particles whose footprint left their rank's rectangle (moved more than the margin, or the
+frame's pose changed); :meth:`DistributedLamp.reach_escapes` reads the count, and after any escape the forces are
+not guaranteed until the reach is agreed again. Where every rank reaches everything (a random split), every cell is
+shared and the result is the whole-grid reduction's.
+
 The distributed lamp is the lamp's pipeline (:mod:`warp_lamp.pipeline`) with two stages swapped for distributed
 variants, not a second lamp: :class:`AgreedFrame` reduces the following grid's box over the ranks, and the
 estimators :class:`DistributedFirstHit` and :class:`DistributedAreaSplit` run the one-device seed and depth pass,
@@ -639,33 +652,165 @@ class DistributedFirstHit(_RankSteps, FirstHit):
 
     name = "first hit, distributed"
 
-    def __init__(self, frame: LampFrame, lamp_mask: int, comm: Collective, *, criterion, split, order, max_bytes):
+    def __init__(
+        self,
+        frame: LampFrame,
+        lamp_mask: int,
+        comm: Collective,
+        *,
+        criterion,
+        split,
+        order,
+        max_bytes,
+        reach: str = "all",
+        reach_margin: int = 0,
+    ):
         _reduction_budget(frame.grid, 1, False, max_bytes)
         super().__init__(frame, lamp_mask, criterion=criterion, split=split, order=order, max_bytes=max_bytes)
         self._init_ranks(comm)
+        #: Whether the rank works on its reach only (criteria 0 and 1 without walls or a following grid).
+        self.windowed = reach == "auto" and not frame.n_walls and not frame.follow
+        self.reach_margin = int(reach_margin)
+        #: The agreed reach: None until the first update after ``place`` (or :meth:`agree_reach`).
+        self.window = None
+        d = self.device
+        self._escapes = wp.zeros(1, dtype=wp.int32, device=d)
+        self._shared = wp.empty(0, dtype=wp.uint64, device=d)
+        self._shared_cells = self._no_int
+        self._slot_of = self._no_int
+        #: Cells of the three grids in the rank's window, and cells two or more ranks' windows share.
+        self.window_cells = self.grid.n_cells
+        self.shared_cells = self.grid.n_cells
 
     @property
     def reduction_bytes(self) -> int:
-        """The whole key array, 16 bytes per cell."""
+        """The whole key array, 16 bytes per cell; with a reach, 16 bytes per shared cell."""
+        if self.windowed:
+            return 16 * self.shared_cells
         return 8 * self.reduced.shape[0]
 
+    def place(self, gids: wp.array, caller: wp.array, n_global: int) -> None:
+        """As the criteria's; the reach is agreed again by the next update."""
+        super().place(gids, caller, n_global)
+        self.window = None
+
+    def update(self, inp: LampInput) -> None:
+        """As :meth:`_RankSteps.update`; with a reach and none agreed yet, agree it first (collective: every rank
+        is in this update; not inside a capture)."""
+        if self.windowed and self.window is None:
+            if self.device.is_capturing:
+                raise RuntimeError(
+                    "update: the ranks' reach is agreed by the first update after set_ids, which synchronises; run "
+                    "one update (or agree_reach) before capturing"
+                )
+            self._agree_reach(inp)
+        super().update(inp)
+
+    def _agree_reach(self, inp: LampInput) -> None:
+        """Each rank's footprint box per grid (cells, with ``reach_margin``), all-gathered; the cells two or more
+        boxes share, listed; the keys emptied (cells outside the new window must hold none)."""
+        d = self.device
+        grid = self.grid
+        self._input = inp
+        big = np.iinfo(np.int32).max
+        box = wp.array(np.array([big, -1, big, -1] * 3, dtype=np.int32), dtype=wp.int32, device=d)
+        if inp.n:
+            wp.launch(
+                dist_kernels.dist_reach,
+                dim=inp.n,
+                inputs=[self._rays(), inp.particles, self._ray, self.lamp_mask],
+                outputs=[box],
+                device=d,
+            )
+        mine = _window_rects(box.numpy(), grid.counts, self.reach_margin)
+        rects = [r.reshape(3, 4) for r in self.comm.allgather_host(mine.reshape(-1))]
+        self.window = _window_struct(rects[self.comm.rank])
+        self.window_cells = int(self.window.n_cells)
+        cells = _shared_cells(rects, grid.counts)
+        self.shared_cells = len(cells)
+        self._shared_cells = wp.array(cells, dtype=wp.int32, device=d) if len(cells) else self._no_int
+        slot_of = np.full(grid.n_cells, -1, dtype=np.int32)
+        slot_of[cells] = np.arange(len(cells), dtype=np.int32)
+        self._slot_of = wp.array(slot_of, dtype=wp.int32, device=d)
+        self._shared = wp.empty(2 * max(len(cells), 1), dtype=wp.uint64, device=d)
+        self._escapes.zero_()
+        self.forget()
+
+    def agree_reach(self) -> None:
+        """Agree the ranks' reach again at the last update's positions (collective; not inside a capture)."""
+        if self.windowed and self._input is not None:
+            self._agree_reach(self._input)
+
+    def reach_escapes(self) -> int:
+        """Particles (summed over ranks and updates) whose footprint left their rank's window since the reach was
+        agreed (collective; synchronises). Counts of updates with escapes may differ from one device."""
+        if not self.windowed:
+            return 0
+        return int(self.comm.allreduce_host(self._escapes.numpy().astype(np.int64), "sum")[0])
+
+    def launch_seed(self) -> None:
+        """Update step 1: the lamp's seed, on the rank's window only with a reach (and its escapes counted)."""
+        if not self.windowed:
+            super().launch_seed()
+            return
+        wp.launch(
+            dist_kernels.dist_seed_window,
+            dim=max(self.window_cells, self.n, self.diag.shape[0]),
+            inputs=[self._rays(), self.window, self._input.particles, self._ray, self.lamp_mask],
+            outputs=[self.keys, self.counts, self.diag, self._escapes],
+            device=self.device,
+        )
+
+    def launch_to_global(self) -> None:
+        """Update step: the rank's keys with global ids (with a reach: of the shared cells only, packed)."""
+        if not self.windowed:
+            super().launch_to_global()
+            return
+        if self.shared_cells:
+            wp.launch(
+                dist_kernels.dist_pack,
+                dim=self.shared_cells,
+                inputs=[self.keys, self.gids, self._shared_cells, self._flip],
+                outputs=[self._shared],
+                device=self.device,
+            )
+
     def launch_reduce(self) -> None:
-        """Update step: the all-reduce MIN of :attr:`reduced` (and the top bit flipped back where the library
-        reduced int64), so that it holds the keys one device holding every particle would."""
-        self.comm.allreduce(self.reduced, "min")
+        """Update step: the all-reduce MIN of :attr:`reduced` (with a reach: of the shared cells' keys), and the top
+        bit flipped back where the library reduced int64, so that it holds the keys one device holding every
+        particle would."""
+        target = self.reduced
+        if self.windowed:
+            if not self.shared_cells:
+                return
+            target = self._shared[: 2 * self.shared_cells]
+        self.comm.allreduce(target, "min")
         if self._flip:
-            wp.launch(dist_kernels.dist_unflip, dim=self.reduced.shape[0], outputs=[self.reduced], device=self.device)
+            wp.launch(dist_kernels.dist_unflip, dim=target.shape[0], outputs=[target], device=self.device)
 
     def launch_scatter(self) -> None:
         """Update step: +1 / -1 to the rank's own particles where the reduced key is theirs; with walls, the walls'
         counts too (every rank counts them all)."""
+        if self.windowed:
+            if self.n and self.window_cells:
+                wp.launch(
+                    dist_kernels.dist_scatter_window,
+                    dim=self.window_cells,
+                    inputs=[self._cells(), self.window, self.keys, self.gids, self.caller, self._slot_of, self._shared],
+                    outputs=[self.counts],
+                    device=self.device,
+                )
+            return
         inputs = [self._cells(), self.keys, self.gids, self.caller]
         if self.frame.n_walls:
+            # Whether the body rests on a wall is the whole body's: the smallest gap over every rank's particles.
+            self.launch_contact()
+            self.comm.allreduce(self.frame.wall_gap, "min")
             self.wall_counts.zero_()
             wp.launch(
                 dist_kernels.dist_scatter_walls,
                 dim=self.grid.n_cells,
-                inputs=[*inputs, self.reduced, self.frame.walls_view(self._input.in_frame)],
+                inputs=[*inputs, self.reduced, self.frame.walls_view(self._input.in_frame), self.lamp_mask],
                 outputs=[self.counts, self.wall_counts],
                 device=self.device,
             )
@@ -681,7 +826,57 @@ class DistributedFirstHit(_RankSteps, FirstHit):
         )
 
     def _owner_keys(self) -> wp.array:
+        if self.windowed:
+            # The whole grid's reduced keys (diagnostics; collective): every rank's keys are empty outside its window.
+            _RankSteps.launch_to_global(self)
+            self.comm.allreduce(self.reduced, "min")
+            if self._flip:
+                n = self.reduced.shape[0]
+                wp.launch(dist_kernels.dist_unflip, dim=n, outputs=[self.reduced], device=self.device)
         return self.reduced
+
+
+def _window_rects(box: np.ndarray, counts: np.ndarray, margin: int) -> np.ndarray:
+    """Per grid, (i0, ni, j0, nj) of the footprint box ``box`` (4 per grid, from ``dist_reach``) widened by
+    ``margin`` cells and clamped to the grid; (0, 0, 0, 0) for a grid the rank does not reach."""
+    out = np.zeros((3, 4), dtype=np.int64)
+    for a in range(3):
+        i_lo, i_hi, j_lo, j_hi = (int(x) for x in box[4 * a : 4 * a + 4])
+        if i_lo > i_hi or j_lo > j_hi:
+            continue
+        nu, nv = (int(x) for x in counts[a])
+        i0, i1 = max(i_lo - margin, 0), min(i_hi + margin, nu - 1)
+        j0, j1 = max(j_lo - margin, 0), min(j_hi + margin, nv - 1)
+        out[a] = (i0, i1 - i0 + 1, j0, j1 - j0 + 1)
+    return out
+
+
+def _window_struct(rect: np.ndarray) -> dist_kernels.ReachWindow:
+    win = dist_kernels.ReachWindow()
+    sizes = rect[:, 1] * rect[:, 3]
+    first = np.concatenate([[0], np.cumsum(sizes)[:2]])
+    win.i0 = wp.vec3i(*(int(x) for x in rect[:, 0]))
+    win.ni = wp.vec3i(*(int(x) for x in rect[:, 1]))
+    win.j0 = wp.vec3i(*(int(x) for x in rect[:, 2]))
+    win.nj = wp.vec3i(*(int(x) for x in rect[:, 3]))
+    win.first = wp.vec3i(*(int(x) for x in first))
+    win.n_cells = int(sizes.sum())
+    return win
+
+
+def _shared_cells(rects: list[np.ndarray], counts: np.ndarray) -> np.ndarray:
+    """Flat cells (ascending) that two or more ranks' windows hold: the only cells whose keys need the reduction."""
+    out = []
+    offset = 0
+    for a in range(3):
+        nu, nv = (int(x) for x in counts[a])
+        cover = np.zeros((nv, nu), dtype=np.int32)
+        for rect in rects:
+            i0, ni, j0, nj = (int(x) for x in rect[a])
+            cover[j0 : j0 + nj, i0 : i0 + ni] += 1
+        out.append(offset + np.flatnonzero(cover.reshape(-1) >= 2))
+        offset += nu * nv
+    return np.concatenate(out).astype(np.int32)
 
 
 class DistributedAreaSplit(_RankSteps, AreaSplit):
@@ -797,9 +992,11 @@ class DistributedLamp(ShiningLamp):
     the particles; :meth:`update` then allocates nothing, reads nothing back and does not synchronise, so with a
     capturable collective (:class:`NCCLCollective`) it can be recorded in a CUDA graph.
 
-    Per update each rank hands the library one all-reduce MIN of ``2 x 8`` bytes per cell (criteria 0 and 1: the
-    whole key array) or ``D`` rounds of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of
-    the whole body (``"area"``), plus 24 bytes with ``follow``: :attr:`reduction_bytes`.
+    Per update each rank hands the library one all-reduce MIN of ``2 x 8`` bytes per cell that two or more ranks
+    reach (criteria 0 and 1 with the reach; every cell with walls, ``follow`` or ``reach="all"``), or ``D`` rounds
+    of ``2 x 8`` bytes per corner sample and one SUM of ``16`` bytes per particle of the whole body (``"area"``),
+    plus 24 bytes with ``follow``: :attr:`reduction_bytes`. With the reach, the first update after :meth:`set_ids`
+    agrees it (a synchronisation): run one update before capturing.
     """
 
     def __new__(cls, *args, **kwargs):
@@ -823,6 +1020,8 @@ class DistributedLamp(ShiningLamp):
         surfaces: str = "first",
         walls=None,
         frames: int = 1,
+        reach: str = "auto",
+        reach_margin: int = 4,
         max_bytes: int = DEFAULT_MAX_BYTES,
     ):
         """Allocate the rank's per-cell arrays and check that all ranks agree on the setup (collective).
@@ -847,6 +1046,10 @@ class DistributedLamp(ShiningLamp):
                 wall is decided from the reduced key, the same on every rank, and every rank holds the walls'
                 counts (``wall_forces_numpy``).
             frames: 1 only: frame averaging is refused (:data:`FRAMES_REFUSAL`).
+            reach: ``"auto"``: criteria 0 and 1 without walls or ``follow`` seed, reduce and scatter only the cells
+                the rank's particles can reach (see the class); ``"all"``: every cell of the three grids.
+            reach_margin: Cells added on every side of each rank's footprint box when the reach is agreed, so that
+                particles can move that far before it must be agreed again (:meth:`agree_reach`).
             max_bytes: Budget for the rank's per-cell arrays [bytes].
         """
         if not isinstance(grid, LampGrid):
@@ -868,16 +1071,19 @@ class DistributedLamp(ShiningLamp):
             max_bytes=max_bytes,
             walls=walls,
         )
+        if reach not in ("auto", "all"):
+            raise ValueError(f"reach: expected 'auto' or 'all', got {reach!r}")
+        self._reach = (reach, check_integer("reach_margin", reach_margin, minimum=0))
         self.comm = as_collective(comm, device)
         digest = _fingerprint(
             grid.corner, grid.cell, grid.counts, grid.origin, grid.rotation, repr(options.criterion),
             lamp_mask(options.lamps), options.depth_slots, options.resolver, options.subpoints, options.follow,
-            options.walls,
+            options.walls, self._reach,
         )  # fmt: skip
         if not np.array_equal(self.comm.allreduce_host(digest, "min"), digest):
             raise ValueError(
                 "grid: the ranks passed different grids or options (criterion, lamps, depth_slots, resolver, "
-                "subpoints, follow, walls); agree them first (enclosing_grid reduces the bounds)"
+                "subpoints, follow, walls, reach, reach_margin); agree them first (enclosing_grid reduces the bounds)"
             )
         self.choice = None
         self._setup(grid, options, self.comm.device)
@@ -893,7 +1099,10 @@ class DistributedLamp(ShiningLamp):
         if options.criterion == "area":
             area = dict(depth_slots=options.depth_slots, resolver=options.resolver, subpoints=options.subpoints)
             return frame, DistributedAreaSplit(frame, mask, self.comm, **area, **shared)
-        return frame, DistributedFirstHit(frame, mask, self.comm, criterion=options.criterion, **shared)
+        reach, margin = self._reach
+        return frame, DistributedFirstHit(
+            frame, mask, self.comm, criterion=options.criterion, reach=reach, reach_margin=margin, **shared
+        )
 
     def __repr__(self) -> str:
         return (
@@ -1003,9 +1212,24 @@ class DistributedLamp(ShiningLamp):
             )
         self._update(inp)
 
+    def agree_reach(self) -> None:
+        """Agree each rank's reach again at its last update's positions (collective; outside a capture): after
+        particles moved more than ``reach_margin`` cells, or the frame's pose changed (:meth:`reach_escapes`). The
+        next update runs cold (the keys are emptied); its result is the same."""
+        if self._input is None:
+            raise RuntimeError("agree_reach: no update yet")
+        if getattr(self.estimator, "windowed", False):
+            self.estimator.agree_reach()
+
+    def reach_escapes(self) -> int:
+        """Particle footprints, summed over ranks and updates, that left their rank's agreed reach since it was
+        agreed (collective; synchronises): 0 means every update since was bitwise equal to one device; otherwise
+        call :meth:`agree_reach` and update again."""
+        return self.estimator.reach_escapes() if getattr(self.estimator, "windowed", False) else 0
+
     def reduced_keys_numpy(self) -> np.ndarray:
         """The reduced keys of the last update (global ids), as ``ShiningLamp.keys``: criteria 0 and 1, two per
-        cell; area criterion, the merged D-slot lists."""
+        cell; area criterion, the merged D-slot lists (collective with a reach: the whole grid is reduced)."""
         return self.estimator._owner_keys().numpy().copy()
 
     def diagnostics(self, positions=None, pressure=None, *, moment_origin=None) -> DistributedDiagnostics:

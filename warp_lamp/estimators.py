@@ -185,6 +185,10 @@ class FirstHit(Estimator):
         self._ordered_n = -1
         #: Signed counts per wall and axis (3 per wall), as the particles'.
         self.wall_counts = wp.zeros(3 * frame.n_walls, dtype=wp.int64, device=d)
+        # With walls, a lamp's decision reads both ends of the body on its ray: keep both keys of a lit axis.
+        self._depth_mask = self.lamp_mask
+        if frame.n_walls:
+            self._depth_mask = sum(3 << (2 * a) for a in range(3) if (self.lamp_mask >> (2 * a)) & 3)
 
     def reserve(self, n: int) -> None:
         """Counts for ``n`` particles; fixes the depth pass's ``split`` (and its sort buffers) for them."""
@@ -271,7 +275,7 @@ class FirstHit(Estimator):
                 self._rays(),
                 self._input.particles,
                 self._ray,
-                self.lamp_mask,
+                self._depth_mask,
                 self.split,
                 self.depth_slots,
                 order,
@@ -284,11 +288,12 @@ class FirstHit(Estimator):
     def launch_scatter(self) -> None:
         """Step 3: each lit cell adds its +1 / -1 to its owners' counts (or to a wall's that stops its ray)."""
         if self.frame.n_walls:
+            self.launch_contact()
             self.wall_counts.zero_()
             wp.launch(
                 lamp_kernels.lamp_scatter_walls,
                 dim=self.grid.n_cells,
-                inputs=[self._cells(), self.keys, self.frame.walls_view(self._input.in_frame)],
+                inputs=[self._cells(), self.keys, self.frame.walls_view(self._input.in_frame), self.lamp_mask],
                 outputs=[self.counts, self.wall_counts],
                 device=self.device,
             )
@@ -302,6 +307,17 @@ class FirstHit(Estimator):
             outputs=[self.counts],
             device=self.device,
         )
+
+    def launch_contact(self) -> None:
+        """Before a scatter with walls: each wall's smallest gap to the particles (whether the body rests on it)."""
+        if self.n:
+            wp.launch(
+                lamp_kernels.walls_contact,
+                dim=self.n,
+                inputs=[self._cells(), self._input.particles, self.frame.walls_view(self._input.in_frame)],
+                outputs=[self.frame.wall_gap],
+                device=self.device,
+            )
 
     def diagnostics(self) -> LampDiagnostics:
         """Counts, surface flags, owner and depth maps, lit cells and skip counters (host copies)."""
@@ -344,11 +360,12 @@ class FirstHit(Estimator):
     def _walled_maps(self, owners: dict, depths: dict) -> dict:
         """Apply the walls to the owner and depth maps (in place), by the scatter's own decision; the walls' maps."""
         walled = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
+        recoils = wp.zeros(2 * self.grid.n_cells, dtype=wp.int32, device=self.device)
         wp.launch(
             lamp_kernels.lamp_walled_owners,
             dim=self.grid.n_cells,
-            inputs=[self._cells(), self._owner_keys(), self.frame.walls_view(self._input.in_frame)],
-            outputs=[walled],
+            inputs=[self._cells(), self._owner_keys(), self.frame.walls_view(self._input.in_frame), self.lamp_mask],
+            outputs=[walled, recoils],
             device=self.device,
         )
         who = walled.numpy()

@@ -152,7 +152,9 @@ class LampGrid:
                 raise ValueError(f"{e}; {hint}") from None
             raise
         lower = lo - 0.3819660112501051 * (n * h - (hi - lo))
-        return cls(lower, lower + n * h, h, rotation=rotation, max_bytes=max_bytes)
+        # Half a cell short of n cells: the box form's ceil then gives n in any unit (lower + n h could round a
+        # hair over and add a row in metres but not in millimetres).
+        return cls(lower, lower + (n - 0.5) * h, h, rotation=rotation, max_bytes=max_bytes)
 
     @classmethod
     def spec(

@@ -8,6 +8,7 @@ runs the stages in order. :class:`FrameAveragedLamp` is a composite of K lamps i
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +46,8 @@ from warp_lamp.validate import (
     lamp_mask,
     lamp_names,
     resolve_device,
+    user_stacklevel,
+    walls_behind_message,
 )
 from warp_lamp.wetted import DEFAULT_MAX_ROUNDS, WettedDiagnostics, check_probe_radius
 
@@ -327,9 +330,11 @@ class ShiningLamp:
             max_bytes: Budget for the lamp's per-cell arrays [bytes] (the area criterion keeps ``depth_slots``
                 keys per corner and lamp); over it, ValueError before anything is allocated.
             walls: Walls that bound the fluid, ``[(point, normal), ...]`` in world coordinates [m], the normal
-                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). A
-                ray that starts inside a wall lights nothing; a ray stops where it enters a wall, and the wall
-                takes the reaction when no sphere comes first (:meth:`diagnostics` ``wall_forces``). On an axis
+                pointing from the wall into the fluid (a platen under a sample: ``[((0, 0, z0), (0, 0, 1))]``). In
+                the memo's mode a ray's fluid lies on the fluid side of every wall; the fluid between a wall and
+                the body pushes both, except where the wall crosses the body's span on that ray or the body rests
+                on the wall (its nearest particle within ``validate.WALL_REST`` of its radius), which seals that
+                end (docs/guide/walls.md; the walls' forces: :meth:`diagnostics` ``wall_forces``). On an axis
                 no wall cuts, the forces still sum to zero; on one a wall cuts, the body's and the walls' forces
                 sum to P times the lamp window that faces the fluid. With ``surfaces="all"`` the probe keeps rho
                 from every wall and the fluid beyond the box lies on the fluid side of every wall: nothing on a
@@ -778,9 +783,33 @@ def _enclosing(c: np.ndarray, r: np.ndarray, cells_per_diameter, rotation, probe
         raise
 
 
+def _warn_fines(radii: np.ndarray, grid: LampGrid, criterion) -> None:
+    """Warn where the area criterion may give particles no load: it splits a cell's area among the spheres that
+    the rays at the cell's corners meet, so a sphere narrower than a cell can fall between those rays and get
+    nothing (criteria 0 and 1 sample it instead: right on average over positions)."""
+    if criterion != "area" or len(radii) == 0:
+        return
+    h = float(np.min(grid.cell))
+    fines = int(np.count_nonzero(2.0 * radii < h))
+    if fines:
+        warnings.warn(
+            f"criterion 'area': {fines:,} particle{'s' if fines > 1 else ''} narrower than a cell ({h:.4g}; "
+            f"smallest diameter {2.0 * float(radii.min()):.4g}) may fall between the cells' corner rays and get no "
+            "load; use more cells per diameter (cells under the smallest diameter) or criterion 1 for such fines",
+            stacklevel=3,
+        )
+
+
 def _host_update(c, r, mask, grid: LampGrid, options: LampOptions, device, *, weight: float = 1.0) -> ShiningLamp:
     """One update on checked host data: positions moved into the grid's frame in float64, then cast."""
+    _warn_fines(r, grid, options.criterion)
     n = c.shape[0]
+    if options.walls is not None:
+        visible = c if mask is None else c[np.asarray(mask) != 0]
+        rv = r if mask is None else r[np.asarray(mask) != 0]
+        message = walls_behind_message(visible, rv, options.walls)
+        if message:
+            warnings.warn(message, stacklevel=user_stacklevel())
     lamp = ShiningLamp._build(grid, options, device)
     lamp._weight = weight
     pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)

@@ -51,6 +51,7 @@ _EXTENSIONS = {
     ".npz": "npz",
     ".vtu": "vtk",
     ".vtp": "vtk",
+    ".vtk": "vtk-legacy",
     ".dump": "lammps",
     ".lammpstrj": "lammps",
     ".liggghts": "lammps",
@@ -90,6 +91,8 @@ class ParticlesInfo:
         radius_mean: Mean radius.
         radius_max: Largest radius.
         scale: Factor applied to the file's lengths (1 unless the file named its unit, or the caller scaled).
+        length_unit: ``"m"`` where the lengths returned are known to be metres (the file named its unit, or the
+            caller passed ``scale``); None where the file does not say (they are then in the file's own unit).
         units: A guess at the length unit of what is returned, in words (see :func:`guess_units`).
         columns: The columns or arrays read, in words.
         timestep: The LAMMPS timestep read, or None.
@@ -105,6 +108,7 @@ class ParticlesInfo:
     radius_mean: float
     radius_max: float
     scale: float = 1.0
+    length_unit: str | None = None
     units: str = ""
     columns: str = ""
     timestep: int | None = None
@@ -114,11 +118,12 @@ class ParticlesInfo:
         """A few lines for a person: count, format, columns, bounds, radii and the units guess."""
         lo = ", ".join(f"{x:.4g}" for x in self.lower)
         hi = ", ".join(f"{x:.4g}" for x in self.upper)
+        unit = " m" if self.length_unit == "m" else " (the file's length unit)"
         step = "" if self.timestep is None else f", timestep {self.timestep}"
         lines = [
             f"read {self.count:,} particles from {self.path} ({self.format}{step}; {self.columns})",
             f"centres from ({lo}) to ({hi}); radii {self.radius_min:.4g} .. {self.radius_max:.4g}, "
-            f"mean {self.radius_mean:.4g}",
+            f"mean {self.radius_mean:.4g}{unit}",
         ]
         return "\n".join([*lines, *self.notes, f"units: {self.units}"])
 
@@ -171,6 +176,33 @@ def _table(path, rows: list[tuple[int, str]], ncols: int, split, what: str) -> n
             except ValueError:
                 raise ParticleFileError(path, f"not a number: {f.strip()!r}", line=line, column=k + 1) from None
     raise ParticleFileError(path, "could not read the table")  # not reached: some row above failed
+
+
+def _ids(path, values, lines=None, column=None, what="id") -> np.ndarray:
+    """Ids as int64: every one a finite whole number (1.7 is refused, not read as 1), naming the line (or index)
+    of the first that is not."""
+    v = np.asarray(values, dtype=np.float64)
+    bad = ~np.isfinite(v) | (v != np.round(v)) | (np.abs(v) > 2.0**53)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        where = {} if lines is None else {"line": int(lines[k]), "column": column}
+        extra = "" if lines is not None else f" (particle {k})"
+        raise ParticleFileError(path, f"{what} {float(v[k])!r} is not a whole number{extra}", **where)
+    return v.astype(np.int64)
+
+
+def _check_unique(path, ids) -> None:
+    """Each id once: a repeated id would make forces written back by id ambiguous."""
+    if ids is None or len(ids) < 2:
+        return
+    order = np.argsort(ids, kind="stable")
+    same = np.flatnonzero(ids[order][1:] == ids[order][:-1])
+    if same.size:
+        first, second = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+        raise ParticleFileError(
+            path,
+            f"id {int(ids[second])} is repeated: particles {first} and {second} (from 0) have it; ids must be unique",
+        )
 
 
 def _check_values(path, centers, radii, lines=None, cols=None, ids=None):
@@ -259,8 +291,10 @@ def _read_csv(path, text: str):
     if len(declared) > 1:
         raise ParticleFileError(path, "the header names different units for the coordinates and radii", line=head_line)
     if declared:
-        scale = declared.pop()
-    ids = data[:, found["id"]].astype(np.int64) if "id" in found else None
+        scale = next(iter(declared))
+    ids = None
+    if "id" in found:
+        ids = _ids(path, data[:, found["id"]], [ln for ln, _ in lines[1:]], found["id"] + 1)
     cols = {"xyz": [found["x"] + 1, found["y"] + 1, found["z"] + 1], "r": rcol + 1}
     _check_values(path, centers, radii, [ln for ln, _ in lines[1:]], cols)
     heads = [f.strip() for f in split(head)]
@@ -269,7 +303,7 @@ def _read_csv(path, text: str):
     notes = []
     if scale != 1.0:
         notes.append(f"the header gives {_UNIT_NAMES.get(scale, scale)}: converted to metres")
-    return centers * scale, radii * scale, ids, what, scale, None, notes
+    return centers * scale, radii * scale, ids, what, (scale if declared else None), None, notes
 
 
 def _is_number(text: str) -> bool:
@@ -299,7 +333,7 @@ def _read_yade(path, text: str):
     if fmt is not None and not {"x", "y", "z", "r"} <= set(tokens):
         raise ParticleFileError(path, f"format {fmt!r} has no x, y, z and r", line=1)
     if not rows:
-        return np.zeros((0, 3)), np.zeros(0), None, "no rows", 1.0, None, []
+        return np.zeros((0, 3)), np.zeros(0), None, "no rows", None, None, []
     width = len(rows[0][1].split())
     fixed = [t for t in tokens if t != "attrs"]
     ncols = width if "attrs" in tokens or fmt is None else len(fixed)
@@ -309,11 +343,11 @@ def _read_yade(path, text: str):
     pos = {t: i for i, t in enumerate(fixed)}
     centers = data[:, [pos["x"], pos["y"], pos["z"]]]
     radii = data[:, pos["r"]].copy()
-    ids = data[:, pos["id"]].astype(np.int64) if "id" in pos else None
+    ids = _ids(path, data[:, pos["id"]], [ln for ln, _ in rows], pos["id"] + 1) if "id" in pos else None
     cols = {"xyz": [pos["x"] + 1, pos["y"] + 1, pos["z"] + 1], "r": pos["r"] + 1}
     _check_values(path, centers, radii, [ln for ln, _ in rows], cols)
     what = f"format {fmt}" if fmt else "no #format line: columns 1-4 as x y z r"
-    return centers, radii, ids, what, 1.0, None, []
+    return centers, radii, ids, what, None, None, []
 
 
 # --- LAMMPS / LIGGGHTS dump -------------------------------------------------------------------------------------
@@ -322,46 +356,85 @@ def _read_yade(path, text: str):
 def _read_lammps(path, text: str, timestep: int | None):
     lines = text.splitlines()
     frames, units, k = [], None, 0
-    while k < len(lines):
-        s = lines[k].strip()
-        if not s:
-            k += 1
-            continue
-        if not s.startswith("ITEM:"):
-            raise ParticleFileError(path, f"expected an 'ITEM:' line, found {s[:40]!r}", line=k + 1, column=1)
-        item = s[5:].strip()
-        if item == "TIMESTEP":
-            frames.append({"line": k + 1, "timestep": _lammps_int(path, lines, k + 1)})
-            k += 2
-        elif item.startswith("UNITS"):
-            units = lines[k + 1].strip().lower() if k + 1 < len(lines) else None
-            k += 2
-        elif item.startswith("NUMBER OF ATOMS") or item.startswith("NUMBER OF ENTRIES"):
-            _need_frame(path, frames, k)
-            frames[-1]["n"] = _lammps_int(path, lines, k + 1)
-            k += 2
-        elif item.startswith("BOX BOUNDS"):
-            _need_frame(path, frames, k)
-            frames[-1]["box"] = (k + 1, item)
-            k += 4
-        elif item.startswith("ATOMS"):
-            _need_frame(path, frames, k)
-            n = frames[-1].get("n")
-            if n is None:
-                raise ParticleFileError(path, "ITEM: ATOMS before ITEM: NUMBER OF ATOMS", line=k + 1)
-            frames[-1]["atoms"] = (k + 1, item[5:].split())
-            if k + 1 + n > len(lines):
-                raise ParticleFileError(
-                    path,
-                    f"the file ends {k + 1 + n - len(lines)} atom lines short of the {n:,} announced",
-                    line=len(lines),
-                )
-            k += 1 + n
-        else:  # ITEM: TIME and others: one value line
-            k += 2
+    cut = None  # a last timestep still being written: (its TIMESTEP line, its timestep or None)
+    try:
+        while k < len(lines):
+            s = lines[k].strip()
+            if not s:
+                k += 1
+                continue
+            if not s.startswith("ITEM:"):
+                raise ParticleFileError(path, f"expected an 'ITEM:' line, found {s[:40]!r}", line=k + 1, column=1)
+            item = s[5:].strip()
+            if item == "TIMESTEP":
+                frames.append({"line": k + 1, "timestep": None})
+                frames[-1]["timestep"] = _lammps_int(path, lines, k + 1)
+                k += 2
+            elif item.startswith("UNITS"):
+                units = lines[k + 1].strip().lower() if k + 1 < len(lines) else None
+                k += 2
+            elif item.startswith("NUMBER OF ATOMS") or item.startswith("NUMBER OF ENTRIES"):
+                _need_frame(path, frames, k)
+                frames[-1]["n"] = _lammps_int(path, lines, k + 1)
+                frames[-1]["n_line"] = k + 2
+                k += 2
+            elif item.startswith("BOX BOUNDS"):
+                _need_frame(path, frames, k)
+                if k + 4 > len(lines):
+                    raise _Cut
+                frames[-1]["box"] = (k + 1, item)
+                k += 4
+            elif item.startswith("ATOMS"):
+                _need_frame(path, frames, k)
+                n = frames[-1].get("n")
+                if n is None:
+                    raise ParticleFileError(path, "ITEM: ATOMS before ITEM: NUMBER OF ATOMS", line=k + 1)
+                rows = lines[k + 1 : k + 1 + n]
+                early = next((j for j, t in enumerate(rows) if t.lstrip().startswith("ITEM:")), None)
+                if early is not None:
+                    raise ParticleFileError(
+                        path,
+                        f"ITEM: NUMBER OF ATOMS (line {frames[-1]['n_line']}) says {n:,} but the timestep's ATOMS "
+                        f"section holds {early:,} rows before the next ITEM",
+                        line=k + 2 + early,
+                    )
+                after = k + 1 + n
+                short_last = after == len(lines) and not text.endswith("\n")
+                if after > len(lines) or (short_last and len(lines[-1].split()) < len(item[5:].split())):
+                    # the writer has not finished this timestep (its last row may be cut too)
+                    raise _Cut(f"the file ends {max(after - len(lines), 1)} atom lines short of the {n:,} announced")
+                nxt = next((j for j in range(after, len(lines)) if lines[j].strip()), None)
+                if nxt is not None and not lines[nxt].lstrip().startswith("ITEM:"):
+                    raise ParticleFileError(
+                        path,
+                        f"ITEM: NUMBER OF ATOMS (line {frames[-1]['n_line']}) says {n:,} but the timestep's ATOMS "
+                        "section holds more rows",
+                        line=nxt + 1,
+                    )
+                frames[-1]["atoms"] = (k + 1, item[5:].split())
+                k = after
+            else:  # ITEM: TIME and others: one value line
+                k += 2
+    except _Cut as e:
+        cut = (frames[-1]["line"], frames[-1]["timestep"], str(e) or "the file ends inside a timestep")
+        frames = frames[:-1]
     frames = [f for f in frames if "atoms" in f]
     if not frames:
+        if cut is not None:
+            raise ParticleFileError(
+                path, f"{cut[2]}, in its first timestep (still being written?): no complete timestep", line=len(lines)
+            )
         raise ParticleFileError(path, "no 'ITEM: ATOMS' section: not a LAMMPS dump?")
+    notes = []
+    if cut is not None:
+        import warnings
+
+        step = "" if cut[1] is None else f" {cut[1]}"
+        notes.append(
+            f"the last timestep{step} (line {cut[0]}) is incomplete (still being written?): read the last complete "
+            f"one, {frames[-1]['timestep']}"
+        )
+        warnings.warn(f"{path}: {notes[-1]}", stacklevel=3)
     if timestep is None:
         frame = frames[-1]
     else:
@@ -398,10 +471,10 @@ def _read_lammps(path, text: str, timestep: int | None):
     if kind == "scaled":
         xyz = _unscale(path, lines, frame, xyz)
     radii = data[:, idx[rname]] / (2.0 if rname == "diameter" else 1.0)
-    ids = data[:, idx["id"]].astype(np.int64) if "id" in idx else None
+    ids = _ids(path, data[:, idx["id"]], [ln for ln, _ in rows], idx["id"] + 1) if "id" in idx else None
     colmap = {"xyz": [idx[c] + 1 for c in names], "r": idx[rname] + 1}
     _check_values(path, xyz, radii, [ln for ln, _ in rows], colmap)
-    scale, notes = 1.0, []
+    scale = 1.0
     if units in _LAMMPS_UNITS:
         scale, name = _LAMMPS_UNITS[units]
         if scale != 1.0:
@@ -411,7 +484,12 @@ def _read_lammps(path, text: str, timestep: int | None):
     if len(frames) > 1:
         notes.append(f"the file holds {len(frames)} timesteps; read {frame['timestep']} (choose with --timestep)")
     what = f"columns {' '.join(names)} {rname}" + ("" if ids is None else " id")
-    return xyz * scale, radii * scale, ids, what, scale, frame["timestep"], notes
+    declared = scale if units in _LAMMPS_UNITS else None
+    return xyz * scale, radii * scale, ids, what, declared, frame["timestep"], notes
+
+
+class _Cut(Exception):
+    """The dump ends inside a timestep (the message says where, if known)."""
 
 
 def _need_frame(path, frames, k):
@@ -420,6 +498,8 @@ def _need_frame(path, frames, k):
 
 
 def _lammps_int(path, lines, k) -> int:
+    if k >= len(lines):
+        raise _Cut
     try:
         return int(lines[k].split()[0])
     except (IndexError, ValueError):
@@ -457,7 +537,7 @@ def _read_npy(path):
         raise ParticleFileError(path, f"expected an (N, 4) array of numbers (x, y, z, radius), got {a.dtype} {a.shape}")
     a = a.astype(np.float64)
     _check_values(path, a[:, :3], a[:, 3])
-    return a[:, :3], a[:, 3].copy(), None, "an (N, 4) array: x, y, z, radius", 1.0, None, []
+    return a[:, :3], a[:, 3].copy(), None, "an (N, 4) array: x, y, z, radius", None, None, []
 
 
 def _read_npz(path):
@@ -494,13 +574,13 @@ def _read_npz(path):
             path, f"{rkey or dkey}: expected shape ({len(centers)},) to match the centres, got {np.shape(radii)}"
         )
     ikey = pick(("ids", "id"))
-    ids = None if ikey is None else np.asarray(arrays[ikey]).astype(np.int64).reshape(-1)
+    ids = None if ikey is None else _ids(path, np.asarray(arrays[ikey]).reshape(-1), what=ikey)
     if ids is not None and ids.shape != (len(centers),):
         raise ParticleFileError(path, f"{ikey}: expected shape ({len(centers)},), got {arrays[ikey].shape}")
     centers, radii = centers.astype(np.float64), np.asarray(radii, dtype=np.float64)
     _check_values(path, centers, radii, ids=ids)
     text = f"arrays {', '.join(what)}, {rkey or dkey}" + ("" if ikey is None else f", {ikey}")
-    return centers, radii, ids, text, 1.0, None, []
+    return centers, radii, ids, text, None, None, []
 
 
 # --- VTK XML ----------------------------------------------------------------------------------------------------
@@ -616,7 +696,7 @@ def _read_vtk(path, data: bytes):
         name = rname or dname
         r = _vtk_array(path, arrays[name], ctx, n, 1)[:, 0] / (1.0 if rname else 2.0)
         iname = next((norm[k] for k in ("id", "ids", "particleid", "globalids") if k in norm), None)
-        ids.append(None if iname is None else _vtk_array(path, arrays[iname], ctx, n, 1)[:, 0].astype(np.int64))
+        ids.append(None if iname is None else _ids(path, _vtk_array(path, arrays[iname], ctx, n, 1)[:, 0], what=iname))
         centers.append(xyz)
         radii.append(r)
         names.add(name if iname is None else f"{name}, {iname}")
@@ -624,7 +704,7 @@ def _read_vtk(path, data: bytes):
     i = None if any(x is None for x in ids) else np.concatenate(ids)
     _check_values(path, c, r, ids=i)
     what = f"{kind}, {len(pieces)} piece{'s' if len(pieces) > 1 else ''}, point array {' / '.join(sorted(names))}"
-    return c, r, i, what, 1.0, None, []
+    return c, r, i, what, None, None, []
 
 
 def _vtk_array(path, node: _Node, ctx, n: int, comps: int) -> np.ndarray:
@@ -664,10 +744,12 @@ def _vtk_array(path, node: _Node, ctx, n: int, comps: int) -> np.ndarray:
             path, f"cannot decode DataArray {node.attrs.get('Name', '')!r} ({e})", line=node.line
         ) from None
     values = np.asarray(values, dtype=np.float64)
-    if values.size < n * comps:
+    if values.size != n * comps:
+        # More values than NumberOfPoints says is as wrong as fewer: which count is right cannot be told.
         raise ParticleFileError(
             path,
-            f"DataArray {node.attrs.get('Name', '')!r} holds {values.size} values, expected {n * comps}",
+            f"DataArray {node.attrs.get('Name', '')!r} holds {values.size} values; NumberOfPoints {n} with "
+            f"{comps} component{'s' if comps > 1 else ''} needs {n * comps}",
             line=node.line,
         )
     return values[: n * comps].reshape(n, comps)
@@ -720,6 +802,23 @@ def _inflate(body: bytes, sizes: np.ndarray, dtype) -> np.ndarray:
     return np.frombuffer(b"".join(out), dtype=dtype)
 
 
+# --- legacy VTK: refused by format, with the way round it ----------------------------------------------------------
+
+
+def _refuse_legacy_vtk(path, head: bytes) -> None:
+    """Legacy VTK (``# vtk DataFile``, what YADE's ``export.VTKExporter`` writes): no well-kept reader without VTK
+    itself reads its POLYDATA (meshio 5.3 reads legacy unstructured grids only), and a hand parser is not worth
+    its bugs; say how to get a format that is read."""
+    kind = re.search(rb"DATASET\s+(\w+)", head)
+    what = f"legacy VTK ({kind.group(1).decode() if kind else 'no DATASET line'})"
+    raise ParticleFileError(
+        path,
+        f"{what} is not read; write the particles as VTK XML or text instead: in YADE, export.text('spheres.txt') "
+        "or VTKRecorder (.vtu); in ParaView, File > Save Data as .vtp or .csv (with the radius array)",
+        line=1,
+    )
+
+
 # --- the entry point --------------------------------------------------------------------------------------------
 
 
@@ -731,9 +830,11 @@ def _sniff(path, head: bytes) -> str:
         return "npy"
     if head.startswith(b"PK"):
         return "npz"
-    text = head.decode("utf-8", "replace").lstrip()
+    text = head.decode("utf-8-sig", "replace").lstrip()
     if text.startswith("<?xml") or text.startswith("<VTKFile"):
         return "vtk"
+    if text.startswith("# vtk DataFile"):
+        return "vtk-legacy"
     if text.startswith("ITEM:"):
         return "lammps"
     lines = [t.strip() for t in text.splitlines() if t.strip()]
@@ -744,14 +845,15 @@ def _sniff(path, head: bytes) -> str:
     return "yade" if fields and all(_is_number(f) for f in fields) else "csv"
 
 
-def read_particles(path, *, fmt: str | None = None, timestep: int | None = None, scale: float = 1.0):
+def read_particles(path, *, fmt: str | None = None, timestep: int | None = None, scale: float | None = None):
     """Read particles from a file (see the module's docstring for the formats).
 
     Args:
         path: The file.
         fmt: One of :data:`FORMATS`; by default from the extension, else from the content.
         timestep: LAMMPS dumps: the timestep to read (default: the last in the file).
-        scale: Factor for every length read, after any unit the file names (0.001 for a file in millimetres).
+        scale: Factor for every length read, after any unit the file names (0.001 for a file in millimetres). Given
+            (even 1), it says the lengths are then metres (:attr:`ParticlesInfo.length_unit`).
 
     Returns:
         (centers, radii, ids, info): centres, shape (N, 3), float64; radii, shape (N,), float64 (diameters
@@ -766,6 +868,8 @@ def read_particles(path, *, fmt: str | None = None, timestep: int | None = None,
         raise ValueError(f"fmt: unknown format {fmt!r}; expected one of {FORMATS}")
     if timestep is not None and (isinstance(timestep, bool) or not isinstance(timestep, (int, np.integer))):
         raise ValueError(f"timestep: expected an integer, got {timestep!r}")
+    scale_given = scale is not None
+    scale = 1.0 if scale is None else scale
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"scale: expected a finite number > 0, got {scale!r}")
     try:
@@ -774,6 +878,8 @@ def read_particles(path, *, fmt: str | None = None, timestep: int | None = None,
     except OSError as e:
         raise ParticleFileError(path, f"cannot read it ({e.strerror or e})") from None
     kind = fmt or _sniff(path, data[:4096])
+    if kind == "vtk-legacy":
+        _refuse_legacy_vtk(path, data[:4096])
     if timestep is not None and kind != "lammps":
         raise ValueError(f"timestep: only LAMMPS dumps have timesteps; {path} reads as {kind}")
     if kind == "npy":
@@ -784,13 +890,18 @@ def read_particles(path, *, fmt: str | None = None, timestep: int | None = None,
         out = _read_vtk(path, data)
     else:
         try:
-            text = data.decode("utf-8")
+            # utf-8-sig: a byte-order mark (Excel, Notepad) before the first line is not part of it
+            text = data.decode("utf-8-sig")
         except UnicodeDecodeError as e:
             line = data[: e.start].count(b"\n") + 1
             raise ParticleFileError(path, f"not a text file ({kind}): byte {e.start} is not UTF-8", line=line) from None
         reader = {"csv": _read_csv, "yade": _read_yade}.get(kind)
         out = _read_lammps(path, text, timestep) if kind == "lammps" else reader(path, text)
     centers, radii, ids, columns, file_scale, step, notes = out
+    # The lengths are known to be metres where the file names its unit or the caller scaled them.
+    in_metres = file_scale is not None or scale_given
+    file_scale = 1.0 if file_scale is None else file_scale
+    _check_unique(path, ids)
     centers = np.ascontiguousarray(centers * scale, dtype=np.float64)
     radii = np.ascontiguousarray(radii * scale, dtype=np.float64)
     n = len(radii)
@@ -804,6 +915,7 @@ def read_particles(path, *, fmt: str | None = None, timestep: int | None = None,
         radius_mean=float(radii.mean()) if n else 0.0,
         radius_max=float(radii.max()) if n else 0.0,
         scale=file_scale * scale,
+        length_unit="m" if in_metres else None,
         units=radii_unit_hint(centers, radii) or guess_units(radii),
         columns=columns,
         timestep=step,

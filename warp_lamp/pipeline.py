@@ -28,7 +28,7 @@ from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import lamp as lamp_kernels
 from warp_lamp.kernels.grid import LampGridParams
 from warp_lamp.kernels.walls import LampWalls
-from warp_lamp.validate import check_particle_arrays
+from warp_lamp.validate import WALL_REST, check_particle_arrays
 
 __all__ = ["Estimator", "LampFrame", "LampInput", "exact_forces", "lamp_input", "launch_add_forces"]
 
@@ -99,18 +99,19 @@ class LampFrame:
         #: The walls' planes in world coordinates, (n, d) per wall with the fluid where n . x > d: one ``vec4`` each
         #: on the device (a simulator may overwrite them between replays, e.g. to move a platen).
         self.walls = wp.array(walls.astype(np.float32).reshape(-1, 4), dtype=wp.vec4, device=device)
-        # In the frame: derived on the device at each update for world positions; for positions the caller moved
-        # into the frame in float64, moved here once in float64 with the grid's own pose.
-        n_frame = walls[:, :3] @ grid.rotation
-        d_frame = walls[:, 3] - walls[:, :3] @ grid.world_origin
-        static = np.concatenate([n_frame, d_frame[:, None]], axis=1).astype(np.float32)
+        # In the frame: derived on the device at each update from :attr:`walls` (so that a simulator may move them),
+        # with the frame's pose for world positions, with the grid's own float64 pose for positions in the frame
+        # (from the float64 planes while :attr:`walls` still holds them as given).
         self._walls_frame = wp.zeros(self.n_walls, dtype=wp.vec4, device=device)
-        self._walls = {}
-        for in_frame, planes in ((False, self._walls_frame), (True, wp.array(static, dtype=wp.vec4, device=device))):
-            view = LampWalls()
-            view.frame = planes
-            view.n = self.n_walls
-            self._walls[in_frame] = view
+        #: Per wall, the smallest gap (n . c - d - r) / r over the particles at the last update (float32).
+        self.wall_gap = wp.zeros(self.n_walls, dtype=wp.float32, device=device)
+        self._grid_pose = (wp.vec3d(*grid.world_origin), wp.mat33d(*grid.rotation.ravel()))
+        self._walls_given = wp.array(walls.reshape(-1, 4), dtype=wp.vec4d, device=device)
+        self._walls = LampWalls()
+        self._walls.frame = self._walls_frame
+        self._walls.n = self.n_walls
+        self._walls.gap = self.wall_gap
+        self._walls.rest = WALL_REST
         if self.follow:
             self.follow_shift = wp.zeros(1, dtype=wp.vec3i, device=device)
             self._bounds = wp.array([3.0e38] * 3 + [-3.0e38] * 3, dtype=wp.float32, device=device)
@@ -133,20 +134,21 @@ class LampFrame:
         return self._params[key]
 
     def walls_view(self, in_frame: bool) -> LampWalls:
-        """The walls in the frame, as the kernels read them (for world positions: as :meth:`launch_walls` last
-        placed them)."""
-        return self._walls[bool(in_frame)]
+        """The walls in the frame, as the kernels read them (as :meth:`launch_walls` last placed them)."""
+        return self._walls
 
     def launch_walls(self, in_frame: bool) -> None:
-        """Place the walls in the frame of the current pose (after the frame moved), for world positions."""
-        if self.n_walls and not in_frame:
-            wp.launch(
-                lamp_kernels.walls_to_frame,
-                dim=self.n_walls,
-                inputs=[self.origin, self.rotation, self.walls],
-                outputs=[self._walls_frame],
-                device=self.device,
-            )
+        """Place the walls in the frame of this update: the current pose for world positions, the grid's own for
+        positions already in the frame; reset their gaps (``walls_contact``)."""
+        if not self.n_walls:
+            return
+        if in_frame:
+            kernel, inputs = lamp_kernels.walls_to_grid_frame, [*self._grid_pose, self.walls, self._walls_given]
+        else:
+            kernel, inputs = lamp_kernels.walls_to_frame, [self.origin, self.rotation, self.walls]
+        wp.launch(
+            kernel, dim=self.n_walls, inputs=inputs, outputs=[self._walls_frame, self.wall_gap], device=self.device
+        )
 
     def force_rotation(self, in_frame: bool) -> wp.array:
         """The rotation that takes the last update's forces to the caller's coordinates."""

@@ -16,6 +16,7 @@ __all__ = [
     "DEFAULT_MAX_BYTES",
     "EXACT_CELLS",
     "LAMPS",
+    "WALL_REST",
     "array_device",
     "check_box",
     "check_budget",
@@ -44,6 +45,7 @@ __all__ = [
     "resolve_device",
     "unit_mixup_hint",
     "user_stacklevel",
+    "walls_behind_message",
 ]
 
 #: Default budget for the device memory one lamp grid or one porosity call may take [bytes].
@@ -402,8 +404,13 @@ def check_box(lower, upper) -> tuple[np.ndarray, np.ndarray]:
 
 def check_shape(shape) -> tuple[int, int, int]:
     """Three integers >= 1 (cells along x, y, z)."""
-    sh = np.asarray(host_array(shape)).reshape(-1)
-    if sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
+    value = host_array(shape)
+    # np.asarray((True, 4, 4)) is an integer array: a bool among the entries is caught before it is promoted.
+    flagged = isinstance(value, (bool, np.bool_)) or (
+        isinstance(value, (tuple, list)) and any(isinstance(x, (bool, np.bool_)) for x in value)
+    )
+    sh = np.asarray(value).reshape(-1)
+    if flagged or sh.shape != (3,) or not np.issubdtype(sh.dtype, np.integer):
         raise ValueError(f"shape: expected 3 integers (nx, ny, nz), got {format_value(shape)}")
     if np.any(sh < 1):
         k = int(np.flatnonzero(sh < 1)[0])
@@ -604,6 +611,11 @@ def check_particle_arrays(positions, radii, active, device, owner: str) -> int:
 #: Most walls a lamp takes (``kernels/walls.py``).
 MAX_WALLS = 8
 
+#: A body rests on a wall (which then seals every ray that meets the body: the fluid does not get under it) when
+#: the gap between the wall and its nearest particle lies within this fraction of that particle's radius, on either
+#: side: a contact or a DEM overlap, not a lifted body (fluid in the gap) or a cut one (a fluid level).
+WALL_REST = 0.1
+
 
 def check_walls(walls) -> np.ndarray:
     """Walls that bound the fluid as planes, shape (W, 4) float64: unit normal (pointing from the wall into the
@@ -633,11 +645,37 @@ def check_walls(walls) -> np.ndarray:
         if not np.isfinite(pair).all():
             raise ValueError(f"walls: wall {k} has a non-finite value: {pair.tolist()}")
         point, normal = pair
-        norm = float(np.linalg.norm(normal))
-        if not norm > 0.0:
+        # Scaled by its largest component first, so that neither 1e200 nor 1e-200 over- or underflows the norm.
+        big = float(np.abs(normal).max())
+        if not big > 0.0:
             raise ValueError(f"walls: wall {k} has a zero normal")
-        n = normal / norm
+        n = normal / big
+        n = n / np.linalg.norm(n)
         planes.append([*n, float(n @ point)])
     if len(planes) > MAX_WALLS:
         raise ValueError(f"walls: at most {MAX_WALLS} walls, got {len(planes)}")
     return np.array(planes, dtype=np.float64).reshape(-1, 4)
+
+
+def walls_behind_message(centers, radii, planes: np.ndarray) -> str:
+    """'' unless every particle lies wholly behind some wall (n . c - d + r <= 0), where no fluid can reach the
+    body: a warning that names the walls (most likely a normal pointing out of the fluid).
+
+    Args:
+        centers: Particle centres [m], shape (N, 3), host, in the planes' coordinates.
+        radii: Particle radii [m], shape (N,) or a scalar.
+        planes: Walls as :func:`check_walls` gives them, shape (W, 4).
+    """
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    if not len(planes) or not len(c):
+        return ""
+    r = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(c),))
+    g = c @ planes[:, :3].T - planes[:, 3] + r[:, None]
+    behind = g <= 0.0
+    if not behind.any(axis=1).all():
+        return ""
+    names = np.flatnonzero(behind.any(axis=0)).tolist()
+    return (
+        f"walls: every particle lies behind wall(s) {names}, where the fluid does not reach, so every force is 0; "
+        "a wall's normal points from the wall into the fluid"
+    )

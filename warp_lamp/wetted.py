@@ -136,7 +136,8 @@ def dilation_table(h, probe_radius) -> np.ndarray:
     """The probe's voxel offsets, as a table: ``table[|dy|, |dz|]`` = the largest |dx| of the set, or -1.
 
     Offset (i, j, k) belongs to the set when, in float64 and in exactly this order,
-    ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2``, each square as ``t * t`` of ``t = n * h``. Float64 rounding is
+    ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2 (1 + 1e-9)``, each square as ``t * t`` of ``t = n * h`` (the slack
+    keeps ties in, in any unit of length). Float64 rounding is
     monotone, so the set is closed toward zero on every axis and the table describes it whole. The kernels and
     the reference both use this table: the dilation radius is decided once, on the host, with no float32 step.
 
@@ -148,7 +149,10 @@ def dilation_table(h, probe_radius) -> np.ndarray:
         int64 array, shape (wy + 1, wz + 1), wy and wz the half-widths along y and z.
     """
     hx, hy, hz = (float(x) for x in h)
-    rho2 = float(probe_radius) * float(probe_radius)
+    # Ties (an offset exactly rho away, as when rho is a whole number of voxels) are in: the relative slack makes
+    # that so whatever the rounding of h and rho, which depends on the unit of length (rho = 2 h in metres and in
+    # millimetres must give one table).
+    rho2 = float(probe_radius) * float(probe_radius) * (1.0 + 1e-9)
 
     def inside(i, j, k):
         return ((i * hx) * (i * hx) + (j * hy) * (j * hy)) + (k * hz) * (k * hz) <= rho2
@@ -225,6 +229,14 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     nwx = int((n[0] + 31) // 32)
     n_words = nwx * int(n[1]) * int(n[2])
     if n_words >= 2**31 // 8 or int(n.prod()) >= 2**31 - 1:
+        size = n * h
+        if 2.0 * rho >= 0.5 * float(size.min()):
+            # The probe's margin is most of the grid: the probe radius is what to change, not the cells.
+            raise ValueError(
+                f"probe_radius: {rho:.6g} takes a margin of {rho:.6g} on every side, half the grid or more, and "
+                f"makes {int(n.prod()):,} voxels, too many for the wetted-surface mode (int32 indices): take a "
+                "smaller probe_radius (a quarter to two mean particle radii) or larger cells"
+            )
         raise ValueError(f"grid: {int(n.prod()):,} voxels are too many for the wetted-surface mode (int32 indices)")
     table = dilation_table(h, rho)
     table_band = dilation_table(h, band_radius(h, rho))
@@ -500,6 +512,8 @@ class WettedSurface:
         self.walls_view = LampWalls()
         self.walls_view.frame = self.walls_frame
         self.walls_view.n = self.n_walls
+        self.walls_view.gap = wp.empty(0, dtype=wp.float32, device=d)  # the memo's mode's contact; unread here
+        self.walls_view.rest = 0.0
         #: Signed counts per wall and axis of the last update (3 int64 per wall), laid out like :attr:`counts`.
         self.wall_counts = wp.zeros(3 * self.n_walls, dtype=wp.int64, device=d)
         nw = lay["n_words"]

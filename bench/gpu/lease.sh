@@ -23,7 +23,7 @@ for part in "$@"; do
   # Each part under a time limit, so that one that hangs cannot cost the others their results.
   limit="${PART_TIMEOUT:-580}"
   if [ -n "${LEASE_END:-}" ]; then
-    # two.sh's deadline: a part gets the time left, and none starts in the last 15 s.
+    # multi.sh's deadline: a part gets the time left, and none starts in the last 15 s.
     left=$(( LEASE_END - $(date +%s) )); [ "$left" -lt "$limit" ] && limit=$left
     if [ "$limit" -lt 15 ]; then summary+=("$(printf '| %-18s | skip | %5s s |' "$part" 0)"); continue; fi
   fi

@@ -19,6 +19,10 @@ both sit within 1.5% of the lamp's. YADE's default alpha = 0 stops in CGAL ("Cre
 NaN") on 2023.02a, and the job refuses it.
 
     python -m warp_lamp.bench.engines [--sweep] [--repeats 3] [--json PATH]
+
+DEM-Engine (DEME, a GPU engine) gets its own rows, :func:`deme_section`: the SphereTest held by the lamp inside
+DEME and the lamp's share of a DEME step, run by ``bench/deme_share.py`` where ``deme`` and a CUDA device are
+present, read from the newest ``bench/results/*-deme.json`` otherwise.
 """
 
 from __future__ import annotations
@@ -44,7 +48,9 @@ __all__ = [
     "SWEEP",
     "alpha_for_probe",
     "bench_engines",
+    "deme_section",
     "find_yade",
+    "format_deme",
     "format_engines",
     "yade_alpha_caps",
 ]
@@ -196,23 +202,104 @@ def section_yade_alpha(
     return rows
 
 
-def bench_engines(*, repeats: int = 3, sweep: bool = False, progress: bool = True) -> dict:
-    """The engines' peer rows: ``{"yade_alpha": rows, "yade": version}``, or ``{"skipped": reason}`` where YADE
-    is not installed."""
+#: The checkout's DEME bench script and result files (absent from an installed package).
+DEME_SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "deme_share.py"
+RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results"
+
+
+def deme_section(*, path=None, run: bool | None = None, timeout: float = 600.0) -> dict:
+    """DEME's rows: the result of ``bench/deme_share.py`` (the SphereTest in DEME, the lamp's share of a step).
+
+    Args:
+        path: A result file to read; by default the newest ``bench/results/*-deme.json``.
+        run: Run ``bench/deme_share.py`` (about seven minutes on a fresh machine: DEME compiles its kernels); by
+            default where ``deme`` and a CUDA device are present and no ``path`` is given.
+        timeout: Seconds the run may take.
+
+    Returns:
+        The result (with ``source``: the file, or "this run"), or ``{"skipped": reason}``.
+    """
+    from warp_lamp.engines.deme import deme_unavailable
+
+    if run is None:
+        run = path is None and deme_unavailable() is None and DEME_SCRIPT.exists()
+    if run:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "deme.json"
+            done = subprocess.run([sys.executable, str(DEME_SCRIPT), "--json", str(out)], timeout=timeout, check=False)
+            if not out.exists():
+                return {"skipped": f"bench/deme_share.py failed (exit {done.returncode})"}
+            return {**json.loads(out.read_text()), "source": "this run"}
+    if path is None:
+        files = sorted(RESULTS.glob("*-deme.json"), key=lambda f: (f.name.split("-", 1)[-1], f.name))
+        if not files:
+            reason = deme_unavailable() or "no DEME result file"
+            return {"skipped": f"{reason}; on a GPU, bench/deme_share.py writes bench/results/<card>-<date>-deme.json"}
+        path = files[-1]
+    path = Path(path)
+    return {**json.loads(path.read_text()), "source": path.name}
+
+
+def format_deme(result: dict) -> str:
+    """DEME's rows as Markdown: the SphereTest's stresses and the lamp's share of a DEME step."""
+    if "skipped" in result:
+        return f"\nDEM-Engine: skipped ({result['skipped']}).\n"
+    lines = ["", f"DEM-Engine {result.get('deme', '?')} on {result.get('gpu', '?')} ({result.get('source', '')}):", ""]
+    st = result.get("sphere_test")
+    if st:
+        sigma = np.asarray(st["sigma_Pa"]) / 1e6
+        lines += [
+            "| SphereTest | spheres | steps | unbalanced | sxx MPa | syy MPa | szz MPa | mean / P |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |",
+            f"| {st['engine']} | {st['n']:,} | {st['steps']} | {st['unbalanced']:.1e} | {sigma[0, 0]:.3f} | "
+            f"{sigma[1, 1]:.3f} | {sigma[2, 2]:.3f} | {st['mean_over_P']:.3f} |",
+            "",
+        ]
+    rows = result.get("share", [])
+    if rows:
+        lines += [
+            "Per DEME step (medians, wall clock): DEME's step beside the lamp's update (read: DEME's positions into "
+            "a Warp array; write: the owners' accelerations) and the per-step queueing (AddAccFromDevice):",
+            "",
+            "| spheres | mode | DEME step us | read us | lamp ms | write us | queue us | share, every step | "
+            "every 10 |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        ]
+        for r in rows:
+            lines.append(
+                f"| {r['n']:,} | {r['mode']}{' (capped)' if r.get('capped') else ''} | "
+                f"{r['step_with_lamp_s'] * 1e6:.0f} | {r['read_s'] * 1e6:.0f} | {r['lamp_s'] * 1e3:.2f} | "
+                f"{r['write_s'] * 1e6:.0f} | {r['apply_s'] * 1e6:.0f} | {r['share_every_1']:.1%} | "
+                f"{r['share_every_10']:.1%} |"
+            )
+    stages = result.get("stages")
+    if stages:
+        lines += ["", "Stages: " + ", ".join(f"{k} {v:.0f} s" if isinstance(v, float) else f"{k} {v}"
+                                              for k, v in stages.items())]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def bench_engines(*, repeats: int = 3, sweep: bool = False, progress: bool = True, deme: bool = True) -> dict:
+    """The engines' peer rows: ``{"yade_alpha": rows, "yade": version, "deme": ...}``, with ``{"skipped":
+    reason}`` in place of YADE's where YADE is not installed; ``deme`` (:func:`deme_section`) unless ``deme`` is
+    False."""
+    out = {"deme": deme_section()} if deme else {}
     yade = find_yade()
     if yade is None:
-        return {"skipped": "YADE not installed (apt-get install yade)"}
+        return {"skipped": "YADE not installed (apt-get install yade)", **out}
     return {
         "yade": yade_version(yade),
         "device": "cpu (one Warp CPU thread; YADE -j1)",
         "yade_alpha": section_yade_alpha(repeats=repeats, sweep=sweep, yade=yade, progress=progress),
+        **out,
     }
 
 
 def format_engines(result: dict) -> str:
-    """The engines' peer rows as a Markdown table."""
+    """The engines' peer rows as a Markdown table (and DEME's, where the result has them)."""
+    deme = format_deme(result["deme"]) if "deme" in result else ""
     if "skipped" in result:
-        return f"\nEngines: skipped ({result['skipped']}).\n"
+        return f"\nEngines: skipped ({result['skipped']}).\n" + deme
     lines = [
         "",
         f"YADE's alpha-shape caps ({result['yade']}, TesselationWrapper.applyAlphaForces, fixedAlpha, shrinkedAlpha "
@@ -236,7 +323,7 @@ def format_engines(result: dict) -> str:
             f"{r['jaccard']:.3f} | {r['force_sum_over_load']:.1e} | {r['seconds'] * 1e3:.1f} / "
             f"{r['cpu_seconds'] * 1e3:.1f} |"
         )
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + deme
 
 
 def main(argv=None) -> int:

@@ -793,7 +793,8 @@ def format_modes(result: dict) -> str:
 
 def plot_area(ax, result: dict) -> list:
     """Update time against the specimen's per-particle force error (the ``area`` section), on a matplotlib axes:
-    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager). Returns the point labels
+    a colour per estimator, solid on CUDA (graph replay) and dashed on the CPU (eager), the axis label naming
+    only the styles drawn. Returns the point labels
     (``(text, (x, y), fontsize)``) for :func:`warp_lamp.bench.place_labels`, which the caller places once the
     figure's layout is fixed."""
     labels = []
@@ -827,7 +828,10 @@ def plot_area(ax, result: dict) -> list:
                 labels += [(f"d/{r['cells_per_diameter']:g}", (x, y), 6) for r, x, y in zip(pts, err, t, strict=True)]
         ax.set_title(f"{sec['scene']} ({sec['n']:,} spheres)", fontsize=9)
     ax.set_xlabel("per-particle force error [%], RMS, vs exact visible areas", fontsize=9)
-    ax.set_ylabel("update [ms]: CUDA replay (solid), CPU eager (dashed)", fontsize=9)
+    # Name only the line styles that are drawn: a result timed on one kind of device has one.
+    kinds = {r["device"].startswith("cuda") for sec in sections for r in sec["rows"]}
+    styles = {frozenset({True}): "CUDA graph replay", frozenset({False}): "CPU, eager"}
+    ax.set_ylabel(f"update [ms]: {styles.get(frozenset(kinds), 'CUDA replay (solid), CPU eager (dashed)')}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6, loc="upper right")
     return labels

@@ -176,7 +176,7 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
 
     Args:
         devices: Warp devices (names); all present when None.
-        quick: A CPU-sized subset that runs in well under a minute.
+        quick: A CPU-sized subset: about 40 s of CPU on the 2-core dev machine with the kernels compiled.
         progress: Show a progress bar on stderr.
         sizes: Lattice sizes per axis to time (default: 22, 46, 100 on CPU; up to 300 on CUDA; 22 when quick).
         repeats: Timed repeats per figure.

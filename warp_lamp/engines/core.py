@@ -10,7 +10,7 @@ import warp as wp
 from warp_lamp.frames import lamp_pressure
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import ShiningLamp
-from warp_lamp.validate import check_mask, check_particles, check_positions
+from warp_lamp.validate import check_mask, check_particles, check_positions, check_walls
 
 __all__ = ["CallTimings", "EngineLamp"]
 
@@ -75,6 +75,12 @@ class EngineLamp:
         elif not isinstance(grid, LampGrid):
             raise TypeError(f"grid: expected a LampGrid, got {type(grid).__name__}")
         self.grid = grid
+        if self._world and lamp_options.get("walls") is not None:
+            # The positions go in relative to the reference, so the walls must too (d shifts by n . reference).
+            planes = check_walls(lamp_options["walls"])
+            lamp_options["walls"] = [
+                (n * d - self.reference, n) for n, d in zip(planes[:, :3], planes[:, 3], strict=True)
+            ]
         self.lamp = ShiningLamp(grid, follow=follow, device=device, **lamp_options)
         self.device = self.lamp.device
         self.pressure = pressure

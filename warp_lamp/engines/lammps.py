@@ -122,6 +122,11 @@ class LammpsLamp:
             raise ValueError(
                 f"lmp: runs on {ranks} MPI ranks; the lamp needs every particle on one rank (run LAMMPS serially)"
             )
+        if not isinstance(group, str) or not group:
+            raise ValueError(f"group: expected the name of a LAMMPS group, got {group!r}")
+        groups = _groups(lmp)
+        if groups is not None and group not in groups:
+            raise ValueError(f"group: LAMMPS has no group {group!r}; its groups: {', '.join(groups)}")
         self.lmp = lmp
         self.fix_id = fix_id
         nlocal = lmp.extract_setting("nlocal")
@@ -212,3 +217,12 @@ class LammpsContacts:
     def _contact_distance(self, pairs: np.ndarray) -> np.ndarray:
         r = np.asarray(self.lmp.numpy.extract_atom("radius"))
         return r[pairs[:, 0]] + r[pairs[:, 1]]
+
+
+def _groups(lmp):
+    """The LAMMPS instance's group names, or None where its Python module cannot list them (before 2021)."""
+    try:
+        # The list has a slot per possible group; the unused ones are None.
+        return [g for g in lmp.available_ids("group") if g]
+    except AttributeError:
+        return None

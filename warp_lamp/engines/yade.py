@@ -4,7 +4,7 @@ YADE runs its own interpreter (``/usr/bin/yade`` starts ``/usr/bin/python3``), s
 importable there. With Debian's ``yade`` package (2023.02a, Python 3.11), a virtual environment over the system
 interpreter that sees its packages keeps YADE's NumPy and adds ours::
 
-    python3 -m venv --system-site-packages ~/yade-env     # /usr/bin/python3, YADE's interpreter
+    /usr/bin/python3 -m venv --system-site-packages ~/yade-env   # Debian's python, YADE's interpreter
     ~/yade-env/bin/pip install warp-lamp                  # or: pip install -e . in a checkout
     ~/yade-env/bin/python /usr/bin/yade -j1 -n -x script.py
 

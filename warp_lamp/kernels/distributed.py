@@ -9,6 +9,12 @@ combined across ranks by an all-reduce MIN, and each rank scatters counts for th
 its own keys (``dist_scatter``): equal keys mean equal (depth, global id), so no map from global ids back to local
 indices is needed.
 
+With a reach (``ReachWindow``), a rank seeds and scatters only the cells its particles can reach (one rectangle of
+cells per grid, agreed at setup with a margin), and offers to the reduction only the cells that two or more ranks'
+rectangles share (``dist_pack``, through a list of those cells): a cell only one rank can reach has that rank's
+key as its reduced key. ``dist_seed_window`` counts the particles whose footprint leaves the rectangle, after which
+the reach must be agreed again.
+
 ``flip`` (1) xors the top bit of every key before and after the reduction: for collectives that reduce int64 but
 not uint64 (torch.distributed), it turns unsigned key order into signed order, and maps EMPTY_KEY to INT64_MAX,
 still the identity of MIN.
@@ -19,7 +25,7 @@ import warp as wp
 from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
 from warp_lamp.kernels.grid import LampGridParams, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
-from warp_lamp.kernels.lamp import walled_owner
+from warp_lamp.kernels.lamp import LampParticles, clear_particle_counts, frame_sphere, seed_key, walled_loads
 from warp_lamp.kernels.porosity import PI, box_cell_volume
 from warp_lamp.kernels.walls import LampWalls
 
@@ -173,27 +179,31 @@ def dist_scatter_walls(
     caller: wp.array[wp.int32],
     reduced: wp.array[wp.uint64],
     walls: LampWalls,
+    lamp_mask: wp.int32,
     # outputs
     counts: wp.array[wp.int64],
     wall_counts: wp.array[wp.int64],
 ):
-    """``lamp_scatter_walls`` on the reduced keys (global ids, not flipped): ``walled_owner`` decides each ray from
-    the reduced key, the same on every rank; a particle's +1 / -1 goes to the rank whose own key is the reduced key
-    (as ``dist_scatter``), a wall's to every rank's wall counts (each rank holds the whole grid's)."""
+    """``lamp_scatter_walls`` on the reduced keys (global ids, not flipped): ``walled_loads`` decides each ray from
+    the reduced keys and the reduced wall gaps, the same on every rank; a particle's +1 / -1 goes to the rank whose
+    own key is the reduced key (as ``dist_scatter``), a wall's to every rank's wall counts (each rank holds the
+    whole grid's)."""
     c = wp.tid()
     a = grid_cell(grid, c)[0]
     for side in range(2):
-        owner = walled_owner(grid, reduced, walls, c, side)
+        who = walled_loads(grid, reduced, walls, c, side, lamp_mask)
         sign = wp.int64(1 - 2 * side)
-        if owner >= 0:
+        if who[0] >= 0:
             mine = keys[2 * c + side]
             if global_key(mine, gids) == reduced[2 * c + side]:
                 i = key_owner(mine)
                 if caller.shape[0] > 0:
                     i = caller[i]
                 wp.atomic_add(counts, 3 * i + a, sign)
-        elif owner <= -2:
-            wp.atomic_add(wall_counts, 3 * (-2 - owner) + a, sign)
+        elif who[0] <= -2:
+            wp.atomic_add(wall_counts, 3 * (-2 - who[0]) + a, sign)
+        if who[1] >= 0:
+            wp.atomic_add(wall_counts, 3 * who[1] + a, -sign)
 
 
 @wp.kernel
@@ -356,3 +366,171 @@ def porosity_fixed(
                 v = box_cell_volume(c, r, cell, h, method == FIXED_EXACT)
                 if v > zero:
                     add_units(solid, cell, v, scale, overflow)
+
+
+@wp.struct
+class ReachWindow:
+    """One rectangle of cells per grid: cells (i, j) of grid a with i0[a] <= i < i0[a] + ni[a] and j0[a] <= j <
+    j0[a] + nj[a], numbered row by row from first[a] (window numbering, three grids together: n_cells)."""
+
+    i0: wp.vec3i
+    j0: wp.vec3i
+    ni: wp.vec3i
+    nj: wp.vec3i
+    first: wp.vec3i
+    n_cells: wp.int32
+
+
+@wp.func
+def window_cell(grid: LampGridParams, win: ReachWindow, t: wp.int32) -> wp.vec3i:
+    """(axis a, flat cell, 0) of window cell t."""
+    a = int(0)
+    if t >= win.first[2]:
+        a = 2
+    elif t >= win.first[1]:
+        a = 1
+    local = t - win.first[a]
+    jj = local / win.ni[a]
+    ii = local - jj * win.ni[a]
+    c = grid.offset[a] + (win.j0[a] + jj) * grid.n_u[a] + win.i0[a] + ii
+    return wp.vec3i(a, c, 0)
+
+
+@wp.func
+def footprint_span(grid: LampGridParams, center: wp.vec3, r: wp.float32, a: wp.int32, ray: wp.int32) -> wp.vec4i:
+    """(first i, last i, first j, last j) of the cells of grid a that the depth pass may visit for a sphere (its
+    rows as the pass's, its columns those of the whole disk: a superset of every row's); first > last if none."""
+    pu = center[(a + 1) % 3] - grid.corner_u[a]
+    pv = center[(a + 2) % 3] - grid.corner_v[a]
+    cols = cell_span(pu - r, pu + r, grid.h_u[a], grid.n_u[a], ray)
+    rows = cell_span(pv - r, pv + r, grid.h_v[a], grid.n_v[a], ray)
+    return wp.vec4i(cols[0], cols[1], rows[0], rows[1])
+
+
+@wp.kernel
+def dist_reach(
+    grid: LampGridParams,
+    particles: LampParticles,
+    ray: wp.int32,
+    lamp_mask: wp.int32,
+    # outputs
+    box: wp.array[wp.int32],
+):
+    """The cells the rank's particles reach, per grid whose lamps are on: box[4 a : 4 a + 4] = (min i, max i, min j,
+    max j) over the particles' footprints (start from (big, -1, big, -1))."""
+    p = wp.tid()
+    sphere = frame_sphere(grid, particles, p)
+    if not sphere.casts:
+        return
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) != 0:
+            s = footprint_span(grid, sphere.center, sphere.radius, a, ray)
+            if s[0] <= s[1] and s[2] <= s[3]:
+                wp.atomic_min(box, 4 * a, s[0])
+                wp.atomic_max(box, 4 * a + 1, s[1])
+                wp.atomic_min(box, 4 * a + 2, s[2])
+                wp.atomic_max(box, 4 * a + 3, s[3])
+
+
+@wp.func
+def escapes_window(
+    grid: LampGridParams, win: ReachWindow, particles: LampParticles, p: wp.int32, ray: wp.int32, lamp_mask: wp.int32
+) -> wp.bool:
+    """Whether particle p's footprint on a grid whose lamps are on leaves the window (an invalid or inactive
+    particle offers nothing, so it never escapes)."""
+    sphere = frame_sphere(grid, particles, p)
+    if not sphere.casts:
+        return False
+    out = False
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) != 0:
+            s = footprint_span(grid, sphere.center, sphere.radius, a, ray)
+            if s[0] <= s[1] and s[2] <= s[3]:
+                if s[0] < win.i0[a] or s[1] >= win.i0[a] + win.ni[a]:
+                    out = True
+                if s[2] < win.j0[a] or s[3] >= win.j0[a] + win.nj[a]:
+                    out = True
+    return out
+
+
+@wp.kernel
+def dist_seed_window(
+    grid: LampGridParams,
+    win: ReachWindow,
+    particles: LampParticles,
+    criterion: wp.int32,
+    lamp_mask: wp.int32,
+    # outputs
+    keys: wp.array[wp.uint64],
+    counts: wp.array[wp.int64],
+    diag: wp.array[wp.int32],
+    escapes: wp.array[wp.int32],
+):
+    """``lamp_seed`` on the window's cells only (thread t: window cell t); thread t also clears particle t's
+    counts and diagnostic t, and counts particle t in ``escapes`` if its footprint left the window."""
+    t = wp.tid()
+    clear_particle_counts(t, particles.n, counts, diag)
+    if t < particles.n:
+        if escapes_window(grid, win, particles, t, criterion, lamp_mask):
+            wp.atomic_add(escapes, 0, 1)
+    if t >= win.n_cells:
+        return
+    wc = window_cell(grid, win, t)
+    c = wc[1]
+    cell = grid_cell(grid, c)
+    for side in range(2):
+        keys[2 * c + side] = seed_key(grid, particles, cell, side, keys[2 * c + side], criterion)
+
+
+@wp.kernel
+def dist_pack(
+    keys: wp.array[wp.uint64],
+    gids: wp.array[wp.int32],
+    cells: wp.array[wp.int32],
+    flip: wp.int32,
+    # outputs
+    shared: wp.array[wp.uint64],
+):
+    """shared[2 k + side] = the rank's key of cell cells[k] with its global id (flipped where ``flip``): the rank's
+    offer for the cells that two or more ranks reach (EMPTY where its particles reach no such cell)."""
+    k = wp.tid()
+    c = cells[k]
+    for side in range(2):
+        shared[2 * k + side] = flipped(global_key(keys[2 * c + side], gids), flip)
+
+
+@wp.kernel
+def dist_scatter_window(
+    grid: LampGridParams,
+    win: ReachWindow,
+    keys: wp.array[wp.uint64],
+    gids: wp.array[wp.int32],
+    caller: wp.array[wp.int32],
+    slot_of: wp.array[wp.int32],
+    shared: wp.array[wp.uint64],
+    # outputs
+    counts: wp.array[wp.int64],
+):
+    """``dist_scatter`` over the window's cells: a shared cell (slot_of >= 0) is the rank's where the reduced key
+    equals its own key in global ids; any other cell of the window only this rank reaches, so its own key wins."""
+    t = wp.tid()
+    wc = window_cell(grid, win, t)
+    a = wc[0]
+    c = wc[1]
+    if keys[2 * c] == EMPTY_KEY and keys[2 * c + 1] == EMPTY_KEY:
+        return  # unlit by this rank: no slot to read
+    slot = slot_of[c]
+    for side in range(2):
+        mine = keys[2 * c + side]
+        if mine != EMPTY_KEY:
+            won = True
+            if slot >= 0:
+                won = global_key(mine, gids) == shared[2 * slot + side]
+            if won:
+                i = key_owner(mine)
+                if caller.shape[0] > 0:
+                    i = caller[i]
+                if side == 0:
+                    wp.atomic_add(counts, 3 * i + a, wp.int64(1))
+                else:
+                    wp.atomic_add(counts, 3 * i + a, wp.int64(-1))

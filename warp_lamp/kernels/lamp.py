@@ -11,7 +11,7 @@ import warp as wp
 from warp_lamp.kernels.footprint import cell_offset, cell_span, lamp_reach
 from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
 from warp_lamp.kernels.keys import EMPTY_KEY, key_depth, key_owner, pack_key
-from warp_lamp.kernels.walls import WALL_BLOCKS, WALL_STOPS, LampWalls, cell_ray_base, ray_stop
+from warp_lamp.kernels.walls import LampWalls, cell_ray_base, plane_value, ray_fluid, wall_rests
 
 # fuse_fp off: CUDA must not contract a*b+c into an FMA, or its depths and hit tests differ from the CPU's in
 # the last bit and CPU and GPU owners stop being bitwise equal.
@@ -494,29 +494,58 @@ def lamp_scatter(
 
 
 @wp.func
-def walled_owner(grid: LampGridParams, keys: wp.array[wp.uint64], walls: LampWalls, c: wp.int32, side: wp.int32):
-    """Who takes lamp ``side`` of cell c when walls bound the fluid: the particle (>= 0), wall w (-2 - w), or
-    nobody (-1): a ray that starts inside a wall lights nothing; one that enters a wall before its first sphere
-    goes to that wall."""
+def walled_loads(
+    grid: LampGridParams, keys: wp.array[wp.uint64], walls: LampWalls, c: wp.int32, side: wp.int32, lamp_mask: wp.int32
+) -> wp.vec2i:
+    """Who lamp ``side`` of cell c loads when walls bound the fluid: (target, recoil). The target takes the lamp's
+    count (+1 low, -1 high): a particle (>= 0), wall w (-2 - w) or nobody (-1); the recoil is the wall (>= 0, or
+    -1) at the lamp's end of the fluid, which takes the opposite count.
+
+    The ray's fluid is (lo, hi) (``ray_fluid``); its body the span [E, X] of the low and high keys (first entry, last
+    exit; centres for criterion 0). Where the span meets the fluid, the low lamp's fluid (lo, E) pushes the first
+    sphere (+1) and the wall at lo (-1) unless that end is sealed: E <= lo (the wall crosses the body) or the body
+    rests on that wall (``wall_rests``). The high end likewise. A ray whose fluid holds no body is one column of
+    fluid between its walls: the low lamp gives its +1 to the wall at hi, the high lamp its -1 to the wall at lo.
+    Off lamps (``lamp_mask``) load nothing; the depth pass keeps both keys of an axis that has a lamp on."""
+    out = wp.vec2i(-1, -1)
     cell = grid_cell(grid, c)
     a = cell[0]
-    stop = ray_stop(walls, a, cell_ray_base(grid, a, cell[1], cell[2]), side)
-    if stop.state == WALL_BLOCKS:
-        return -1
-    key = keys[2 * c + side]
-    lit = key != EMPTY_KEY
-    if lit and stop.state == WALL_STOPS:
-        # The key holds the entry coordinate (low lamp) or the negated exit coordinate (high lamp).
-        depth = wp.float64(key_depth(key))
-        if side == 0:
-            lit = depth <= stop.t
-        else:
-            lit = -depth >= stop.t
-    if lit:
-        return key_owner(key)
-    if stop.state == WALL_STOPS:
-        return -2 - stop.wall
-    return -1
+    if ((lamp_mask >> (2 * a + side)) & 1) == 0:
+        return out
+    fl = ray_fluid(walls, a, cell_ray_base(grid, a, cell[1], cell[2]))
+    if not fl.wet:
+        return out
+    low = keys[2 * c]
+    high = keys[2 * c + 1]
+    body = low != EMPTY_KEY and high != EMPTY_KEY
+    if body:
+        e = wp.float64(key_depth(low))
+        x = -wp.float64(key_depth(high))
+        if fl.lo_wall >= 0 and x <= fl.lo:
+            body = False
+        if fl.hi_wall >= 0 and e >= fl.hi:
+            body = False
+        if body:
+            if side == 0:
+                if fl.lo_wall >= 0:
+                    if e <= fl.lo or wall_rests(walls, fl.lo_wall):
+                        return out
+                out[0] = key_owner(low)
+                out[1] = fl.lo_wall
+            else:
+                if fl.hi_wall >= 0:
+                    if x >= fl.hi or wall_rests(walls, fl.hi_wall):
+                        return out
+                out[0] = key_owner(high)
+                out[1] = fl.hi_wall
+            return out
+    if side == 0:
+        if fl.hi_wall >= 0:
+            out[0] = -2 - fl.hi_wall
+    else:
+        if fl.lo_wall >= 0:
+            out[0] = -2 - fl.lo_wall
+    return out
 
 
 @wp.kernel
@@ -524,21 +553,24 @@ def lamp_scatter_walls(
     grid: LampGridParams,
     keys: wp.array[wp.uint64],
     walls: LampWalls,
+    lamp_mask: wp.int32,
     # outputs
     counts: wp.array[wp.int64],
     wall_counts: wp.array[wp.int64],
 ):
-    """``lamp_scatter`` with walls that bound the fluid (``walled_owner``): a wall that takes a cell counts it
-    like a particle (3 counts per wall)."""
+    """``lamp_scatter`` with walls that bound the fluid (``walled_loads``): a wall counts like a particle (3 counts
+    per wall), as a lamp's target or as the recoil at the lamp's end of the fluid."""
     c = wp.tid()
     a = grid_cell(grid, c)[0]
     for side in range(2):
-        owner = walled_owner(grid, keys, walls, c, side)
+        who = walled_loads(grid, keys, walls, c, side, lamp_mask)
         sign = wp.int64(1 - 2 * side)
-        if owner >= 0:
-            wp.atomic_add(counts, 3 * owner + a, sign)
-        elif owner <= -2:
-            wp.atomic_add(wall_counts, 3 * (-2 - owner) + a, sign)
+        if who[0] >= 0:
+            wp.atomic_add(counts, 3 * who[0] + a, sign)
+        elif who[0] <= -2:
+            wp.atomic_add(wall_counts, 3 * (-2 - who[0]) + a, sign)
+        if who[1] >= 0:
+            wp.atomic_add(wall_counts, 3 * who[1] + a, -sign)
 
 
 @wp.kernel
@@ -546,13 +578,38 @@ def lamp_walled_owners(
     grid: LampGridParams,
     keys: wp.array[wp.uint64],
     walls: LampWalls,
+    lamp_mask: wp.int32,
     # outputs
     owners: wp.array[wp.int32],
+    recoils: wp.array[wp.int32],
 ):
-    """Diagnostics: ``walled_owner`` of both lamps of every cell (two per cell, as the keys)."""
+    """Diagnostics: the target and the recoil wall of both lamps of every cell (``walled_loads``; two per cell, as
+    the keys)."""
     c = wp.tid()
     for side in range(2):
-        owners[2 * c + side] = walled_owner(grid, keys, walls, c, side)
+        who = walled_loads(grid, keys, walls, c, side, lamp_mask)
+        owners[2 * c + side] = who[0]
+        recoils[2 * c + side] = who[1]
+
+
+@wp.kernel
+def walls_contact(
+    grid: LampGridParams,
+    particles: LampParticles,
+    walls: LampWalls,
+    # outputs
+    gap: wp.array[wp.float32],
+):
+    """Per wall, the smallest gap (n . c - d - r) / r over the particles that cast light, by atomic min (the walls'
+    placement reset it): whether the body rests on the wall, is clear of it or is cut by it (``wall_rests``)."""
+    i = wp.tid()
+    sphere = frame_sphere(grid, particles, i)
+    if not sphere.casts:
+        return
+    c = wp.vec3d(wp.float64(sphere.center[0]), wp.float64(sphere.center[1]), wp.float64(sphere.center[2]))
+    r = wp.float64(sphere.radius)
+    for w in range(walls.n):
+        wp.atomic_min(gap, w, wp.float32((plane_value(walls.frame[w], c) - r) / r))
 
 
 @wp.func
@@ -697,6 +754,19 @@ def lamp_to_frame(
     frame[i] = grid_to_frame(grid, particles.positions[i])
 
 
+@wp.func
+def wall_in_frame(p: wp.vec4, o: wp.vec3d, r: wp.mat33) -> wp.vec4:
+    """Plane (n, d) in world coordinates moved into the frame (origin o, rotation r), in float64 then float32."""
+    nf = wp.vec3(0.0)
+    for k in range(3):
+        nf[k] = wp.float32(
+            (wp.float64(r[0, k]) * wp.float64(p[0]) + wp.float64(r[1, k]) * wp.float64(p[1]))
+            + wp.float64(r[2, k]) * wp.float64(p[2])
+        )
+    dot = (wp.float64(p[0]) * o[0] + wp.float64(p[1]) * o[1]) + wp.float64(p[2]) * o[2]
+    return wp.vec4(nf[0], nf[1], nf[2], wp.float32(wp.float64(p[3]) - dot))
+
+
 @wp.kernel
 def walls_to_frame(
     origin: wp.array[wp.vec3],
@@ -704,20 +774,48 @@ def walls_to_frame(
     world: wp.array[wp.vec4],
     # outputs
     frame: wp.array[wp.vec4],
+    gap: wp.array[wp.float32],
 ):
     """Each wall in the frame of the current pose: n_f = R^T n, d_f = d - n . o (float64, then float32), so that a
-    simulator that moves the frame (or the walls) between replays moves the planes too."""
+    simulator that moves the frame (or the walls) between replays moves the planes too; resets the wall's gap for
+    ``walls_contact``."""
+    w = wp.tid()
+    o = origin[0]
+    frame[w] = wall_in_frame(world[w], wp.vec3d(wp.float64(o[0]), wp.float64(o[1]), wp.float64(o[2])), rotation[0])
+    gap[w] = 3.0e38
+
+
+@wp.kernel
+def walls_to_grid_frame(
+    origin: wp.vec3d,
+    rotation: wp.mat33d,
+    world: wp.array[wp.vec4],
+    given: wp.array[wp.vec4d],
+    # outputs
+    frame: wp.array[wp.vec4],
+    gap: wp.array[wp.float32],
+):
+    """``walls_to_frame`` for positions the caller moved into the grid's frame in float64 (grid origin and rotation
+    in float64): a wall still as given (``world`` the float32 rounding of ``given``) is moved from its float64
+    plane, so that a wall far from the world origin keeps the positions' precision; a wall the caller rewrote
+    in ``world`` is moved from there."""
     w = wp.tid()
     p = world[w]
-    r = rotation[0]
-    o = origin[0]
-    nf = wp.vec3(0.0)
-    for k in range(3):
-        nf[k] = wp.float32(
-            (wp.float64(r[0, k]) * wp.float64(p[0]) + wp.float64(r[1, k]) * wp.float64(p[1]))
-            + wp.float64(r[2, k]) * wp.float64(p[2])
-        )
-    dot = (wp.float64(p[0]) * wp.float64(o[0]) + wp.float64(p[1]) * wp.float64(o[1])) + wp.float64(p[2]) * wp.float64(
-        o[2]
-    )
-    frame[w] = wp.vec4(nf[0], nf[1], nf[2], wp.float32(wp.float64(p[3]) - dot))
+    q = given[w]
+    same = True
+    for k in range(4):
+        if wp.float32(q[k]) != p[k]:
+            same = False
+    if same:
+        nf = wp.vec3(0.0)
+        for k in range(3):
+            nf[k] = wp.float32((rotation[0, k] * q[0] + rotation[1, k] * q[1]) + rotation[2, k] * q[2])
+        dot = (q[0] * origin[0] + q[1] * origin[1]) + q[2] * origin[2]
+        frame[w] = wp.vec4(nf[0], nf[1], nf[2], wp.float32(q[3] - dot))
+    else:
+        r = wp.mat33()
+        for i in range(3):
+            for j in range(3):
+                r[i, j] = wp.float32(rotation[i, j])
+        frame[w] = wall_in_frame(p, origin, r)
+    gap[w] = 3.0e38

@@ -1,9 +1,10 @@
-"""Planar walls that bound the fluid: where a lamp's ray stops, and which lamp cannot shine at all.
+"""Planar walls that bound the fluid: where a lamp's ray is in the fluid, and who takes each end of it.
 
-A wall is a plane with a unit normal pointing from the wall into the fluid: the fluid is ``n . x > d``. A ray
-that starts inside a wall (its lamp sits on the wall's side) reaches the body only through the wall and lights
-nothing; a ray that starts in the fluid stops where it first enters a wall, and that wall takes the reaction when
-no sphere comes first.
+A wall is a plane with a unit normal pointing from the wall into the fluid: the fluid is ``n . x > d``. Along a
+cell's ray the fluid is the interval (lo, hi) that lies on the fluid side of every wall (``ray_fluid``). The body
+on the ray is the span [E, X] from its first sphere's entry to its last sphere's exit (the memo's convention: what
+lies between is body). The fluid between a wall and the body pushes both; a wall that crosses the ray inside the
+span, or a wall the body rests on, seals that end (``walled_loads``, docs/guide/walls.md).
 """
 
 import warp as wp
@@ -15,69 +16,80 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 #: Most walls a lamp takes.
 MAX_WALLS = 8
 
-WALL_FREE = wp.constant(0)
-WALL_STOPS = wp.constant(1)
-WALL_BLOCKS = wp.constant(2)
-
 
 @wp.struct
 class LampWalls:
     """The walls as the kernels read them: planes (n, d), fluid where ``n . x > d``, in the lamp frame (positions
-    relative to the frame origin), and their number (0: no walls)."""
+    relative to the frame origin), and their number (0: no walls); ``gap`` per wall the smallest (n . c - d - r) / r
+    over the particles (``walls_contact``), and ``rest``: a body whose smallest gap lies in [-rest, rest] rests on
+    the wall, which then seals every ray that meets the body."""
 
     frame: wp.array[wp.vec4]
     n: wp.int32
+    gap: wp.array[wp.float32]
+    rest: wp.float32
 
 
 @wp.struct
-class RayStop:
-    """Where a lamp's ray ends: ``state`` WALL_FREE (no wall on its way), WALL_STOPS (it enters wall ``wall`` at
-    coordinate ``t`` along its axis) or WALL_BLOCKS (it starts inside a wall and lights nothing)."""
+class RayFluid:
+    """The part of a cell's ray in the fluid: coordinates ``lo`` < ``hi`` along its axis, bounded by wall
+    ``lo_wall`` / ``hi_wall`` (-1: open to infinity on that side); ``wet`` false where no part of the ray is in
+    the fluid."""
 
-    state: wp.int32
-    t: wp.float64
-    wall: wp.int32
+    wet: wp.bool
+    lo: wp.float64
+    hi: wp.float64
+    lo_wall: wp.int32
+    hi_wall: wp.int32
 
 
 @wp.func
-def ray_stop(walls: LampWalls, a: wp.int32, base: wp.vec3d, side: wp.int32) -> RayStop:
-    """Where the ray along axis ``a`` through ``base`` (frame coordinates, ``base[a]`` = 0) ends for lamp ``side``
-    (0: from minus infinity toward +a; 1: from plus infinity toward -a): the nearest wall it enters, ties to the
-    lowest wall."""
-    out = RayStop()
-    out.state = WALL_FREE
-    out.t = wp.float64(0.0)
-    out.wall = -1
+def plane_value(pl: wp.vec4, x: wp.vec3d) -> wp.float64:
+    """The wall's signed distance ``g = n . x - d`` at x (frame coordinates) in float64, in this order: positive on
+    the fluid side, negative inside the wall (the normal is the float32 unit normal)."""
+    return ((wp.float64(pl[0]) * x[0] + wp.float64(pl[1]) * x[1]) + wp.float64(pl[2]) * x[2]) - wp.float64(pl[3])
+
+
+@wp.func
+def ray_fluid(walls: LampWalls, a: wp.int32, base: wp.vec3d) -> RayFluid:
+    """The fluid interval of the ray along axis ``a`` through ``base`` (frame coordinates, ``base[a]`` = 0): above
+    every wall whose normal has a positive a-component (the largest crossing bounds it, ties to the lowest wall),
+    below every wall whose normal has a negative one; a wall parallel to the ray with the ray behind it (g < 0)
+    leaves it dry."""
+    out = RayFluid()
+    out.wet = True
+    out.lo = wp.float64(0.0)
+    out.hi = wp.float64(0.0)
+    out.lo_wall = -1
+    out.hi_wall = -1
     for w in range(walls.n):
         pl = walls.frame[w]
         nn = wp.float64(pl[a])
-        g = (
-            (wp.float64(pl[0]) * base[0] + wp.float64(pl[1]) * base[1])
-            + wp.float64(pl[2]) * base[2]
-            - wp.float64(pl[3])
-        )
-        # The ray starts in the wall when its lamp's end of the axis lies on the wall's side.
-        starts_inside = g < wp.float64(0.0)
-        if nn > wp.float64(0.0):
-            starts_inside = side == 0
-        elif nn < wp.float64(0.0):
-            starts_inside = side == 1
-        if starts_inside:
-            out.state = WALL_BLOCKS
-            return out
-        if nn != wp.float64(0.0):
+        g = plane_value(pl, base)
+        if nn == wp.float64(0.0):
+            if g < wp.float64(0.0):
+                out.wet = False
+        else:
             t = -g / nn
-            better = out.state == WALL_FREE
-            if not better:
-                if side == 0:
-                    better = t < out.t
-                else:
-                    better = t > out.t
-            if better:
-                out.state = WALL_STOPS
-                out.t = t
-                out.wall = w
+            if nn > wp.float64(0.0):
+                if out.lo_wall < 0 or t > out.lo:
+                    out.lo = t
+                    out.lo_wall = w
+            else:
+                if out.hi_wall < 0 or t < out.hi:
+                    out.hi = t
+                    out.hi_wall = w
+    if out.lo_wall >= 0 and out.hi_wall >= 0:
+        if out.lo >= out.hi:
+            out.wet = False
     return out
+
+
+@wp.func
+def wall_rests(walls: LampWalls, w: wp.int32) -> wp.bool:
+    """Whether the body rests on wall w: its smallest gap (``walls_contact``) lies within [-rest, rest]."""
+    g = walls.gap[w]
+    return g >= -walls.rest and g <= walls.rest
 
 
 @wp.func
@@ -87,10 +99,3 @@ def cell_ray_base(grid: LampGridParams, a: wp.int32, i: wp.int32, j: wp.int32) -
     base[(a + 1) % 3] = wp.float64(grid.corner_u[a]) + (wp.float64(i) + wp.float64(0.5)) * wp.float64(grid.h_u[a])
     base[(a + 2) % 3] = wp.float64(grid.corner_v[a]) + (wp.float64(j) + wp.float64(0.5)) * wp.float64(grid.h_v[a])
     return base
-
-
-@wp.func
-def plane_value(pl: wp.vec4, x: wp.vec3d) -> wp.float64:
-    """The wall's signed distance ``g = n . x - d`` at x (frame coordinates) in float64, in this order: positive on
-    the fluid side, negative inside the wall (``ray_stop``'s expression; the normal is the float32 unit normal)."""
-    return ((wp.float64(pl[0]) * x[0] + wp.float64(pl[1]) * x[1]) + wp.float64(pl[2]) * x[2]) - wp.float64(pl[3])

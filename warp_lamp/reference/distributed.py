@@ -13,6 +13,7 @@ __all__ = [
     "fixed_units_reference",
     "global_keys_reference",
     "merge_lists_reference",
+    "reach_reference",
     "scatter_reference",
     "scatter_walls_reference",
 ]
@@ -75,7 +76,44 @@ def scatter_reference(reduced, keys, gids, caller, axis_of_cell, n) -> np.ndarra
     return counts
 
 
-def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled, n_walls) -> tuple:
+def reach_reference(centers, radii, corner, cell, counts, criterion: int) -> np.ndarray:
+    """The cells the spheres light, as a box per grid: (min i, max i, min j, max j) of every cell (i, j) of grid a
+    whose ray meets a sphere (criterion 1: the ray through the cell centre passes within r of the centre; criterion
+    0: the cell's rectangle meets the projected disk); (big, -1, big, -1) for a grid no sphere lights. Brute force
+    over every cell, in float64.
+
+    Args:
+        centers: Sphere centres in the grid's local coordinates [m], shape (N, 3).
+        radii: Radii [m], shape (N,).
+        corner, cell, counts: The grids' corners, cell edges and cell counts (``LampGrid``), shape (3, 2) each.
+        criterion: 0 or 1.
+    """
+    big = np.iinfo(np.int32).max
+    out = np.array([big, -1, big, -1] * 3, dtype=np.int64)
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3
+        nu, nv = (int(x) for x in counts[a])
+        iu = np.arange(nu)
+        jv = np.arange(nv)
+        for c, r in zip(np.asarray(centers, dtype=np.float64), np.asarray(radii, dtype=np.float64), strict=True):
+            pu, pv = c[u] - corner[a, 0], c[v] - corner[a, 1]
+            if criterion == 1:
+                du = (iu + 0.5) * cell[a, 0] - pu
+                dv = (jv + 0.5) * cell[a, 1] - pv
+            else:
+                du = np.maximum(np.maximum(iu * cell[a, 0] - pu, pu - (iu + 1) * cell[a, 0]), 0.0)
+                dv = np.maximum(np.maximum(jv * cell[a, 1] - pv, pv - (jv + 1) * cell[a, 1]), 0.0)
+            hit = dv[:, None] ** 2 + du[None, :] ** 2 <= r * r
+            if hit.any():
+                jj, ii = np.nonzero(hit)
+                out[4 * a : 4 * a + 4] = (
+                    min(out[4 * a], ii.min()), max(out[4 * a + 1], ii.max()),
+                    min(out[4 * a + 2], jj.min()), max(out[4 * a + 3], jj.max()),
+                )  # fmt: skip
+    return out
+
+
+def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled, n_walls, recoils=None) -> tuple:
     """The counts one rank scatters when walls bound the fluid, given who takes each ray of the reduced keys
     (``walled``, two per cell: a global id >= 0, wall w as -2 - w, or -1 for nobody): a particle's +1 (low lamp) /
     -1 (high lamp) goes to the rank's caller row where the reduced key is the rank's own key in global ids; a wall's
@@ -90,6 +128,8 @@ def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled
         n: Particles of the rank.
         walled: Who takes each ray, shape (2 C,).
         n_walls: Number of walls W.
+        recoils: Optional, shape (2 C,): the wall (>= 0, or -1) at each lamp's end of the fluid, which takes the
+            opposite of the lamp's count.
 
     Returns:
         (counts, wall_counts): int64, shapes (N, 3) and (W, 3).
@@ -100,6 +140,9 @@ def scatter_walls_reference(reduced, keys, gids, caller, axis_of_cell, n, walled
     wall_counts = np.zeros((n_walls, 3), dtype=np.int64)
     for slot in np.flatnonzero(walled <= -2):
         wall_counts[-2 - int(walled[slot]), axis_of_cell[slot // 2]] += 1 if slot % 2 == 0 else -1
+    if recoils is not None:
+        for slot in np.flatnonzero(np.asarray(recoils) >= 0):
+            wall_counts[int(recoils[slot]), axis_of_cell[slot // 2]] -= 1 if slot % 2 == 0 else -1
     return counts, wall_counts
 
 

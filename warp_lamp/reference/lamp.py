@@ -15,7 +15,7 @@ import numpy as np
 from warp_lamp.grid import LampGrid
 from warp_lamp.validate import LAMPS, lamp_mask
 
-__all__ = ["EPS32", "LampReference", "lamp_reference"]
+__all__ = ["EPS32", "LampReference", "lamp_reference", "wall_gaps"]
 
 #: Unit roundoff of float32.
 EPS32 = 2.0**-24
@@ -35,32 +35,45 @@ class LampReference:
     wall_counts: np.ndarray | None = None
 
 
-def _ray_stops(walls: np.ndarray, grid: LampGrid, a: int, lo_side: bool):
-    """For every cell-centre ray of grid a: whether it starts inside a wall, the coordinate along a where it
-    first enters one (local: minus the grid origin), and that wall (-1: none), in float64 by definition: a ray
-    from its lamp's end of the axis that lies on a wall's side of the plane starts inside it."""
+def _ray_fluid(walls: np.ndarray, grid: LampGrid, a: int):
+    """For every cell-centre ray of grid a, the part in the fluid, in float64 by definition: whether any (wet),
+    its ends lo < hi along a (local: minus the grid origin; -inf / inf where open) and the walls that bound them
+    (-1: open). lo is the largest crossing of a wall whose normal has a positive a-component (ties to the lowest
+    wall), hi the smallest of one with a negative component; a wall parallel to the ray with the ray behind it
+    (g < 0) leaves it dry."""
     u, v = (a + 1) % 3, (a + 2) % 3
     (cu, cv), (hu, hv), (nu, nv) = grid.corner[a], grid.cell[a], grid.counts[a]
     pu = (cu + (np.arange(nu) + 0.5) * hu)[:, None]
     pv = (cv + (np.arange(nv) + 0.5) * hv)[None, :]
-    blocked = np.zeros((nu, nv), dtype=bool)
-    stop = np.full((nu, nv), np.inf if lo_side else -np.inf)
-    wall = np.full((nu, nv), -1)
+    wet = np.ones((nu, nv), dtype=bool)
+    lo, hi = np.full((nu, nv), -np.inf), np.full((nu, nv), np.inf)
+    lo_wall, hi_wall = np.full((nu, nv), -1), np.full((nu, nv), -1)
     for w, (nx, ny, nz, d) in enumerate(walls):
         n = (nx, ny, nz)
         # n . x - d along the ray x = (pu, pv) + t e_a, in global frame coordinates.
         g = np.broadcast_to(n[u] * pu + n[v] * pv - d, (nu, nv))
         if n[a] == 0.0:
-            blocked |= g < 0.0
-            continue
-        if (n[a] > 0.0) == lo_side:
-            blocked[:] = True
+            wet &= g >= 0.0
             continue
         t = -g / n[a] - grid.origin[a]
-        better = t < stop if lo_side else t > stop
-        stop = np.where(better, t, stop)
-        wall = np.where(better, w, wall)
-    return blocked, stop, wall
+        if n[a] > 0.0:
+            better = t > lo
+            lo, lo_wall = np.where(better, t, lo), np.where(better, w, lo_wall)
+        else:
+            better = t < hi
+            hi, hi_wall = np.where(better, t, hi), np.where(better, w, hi_wall)
+    wet &= lo < hi
+    return wet, lo, hi, lo_wall, hi_wall
+
+
+def wall_gaps(centers, radii, walls) -> np.ndarray:
+    """Per wall, the smallest (n . c - d - r) / r over the particles (inf without particles), in float64."""
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    walls = np.asarray(walls, dtype=np.float64).reshape(-1, 4)
+    if not len(r):
+        return np.full(len(walls), np.inf)
+    return ((c @ walls[:, :3].T - walls[:, 3] - r[:, None]) / r[:, None]).min(axis=0)
 
 
 def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_side: bool):
@@ -125,7 +138,7 @@ def _lamp_cells(local_c, r, visible, grid: LampGrid, a: int, criterion: int, lo_
 
 
 def lamp_reference(
-    centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None, walls=None
+    centers, radii, grid: LampGrid, *, criterion: int = 1, lamps="all", active=None, walls=None, rest: float = 0.1
 ) -> LampReference:
     """Owners, depths and signed counts of every lamp, in float64, by brute force over spheres and cells.
 
@@ -137,9 +150,14 @@ def lamp_reference(
         lamps: "all" or names from :data:`warp_lamp.LAMPS`.
         active: Optional mask, shape (N,); inactive particles are left out.
         walls: Optional planes (W, 4) in the same coordinates as ``centers``: unit normal n into the fluid and
-            offset d, the fluid being n . x > d. A cell-centre ray that starts inside a wall lights nothing; one
-            that enters a wall before its first sphere (the sphere's entry coordinate, or its centre for criterion
-            0, beyond the wall's) goes to that wall. Within float32 rounding of that comparison a cell is ambiguous.
+            offset d, the fluid being n . x > d. Along each cell-centre ray the fluid is (lo, hi) and the body the
+            span [E, X] of its first entry and last exit (centres for criterion 0). Where the span meets the
+            fluid, the low lamp loads the first sphere (+1) and the wall at lo (-1) unless E <= lo or the body
+            rests on that wall; the high lamp likewise at hi. A wet ray with no body in its fluid: the low lamp's
+            +1 goes to the wall at hi, the high lamp's -1 to the wall at lo. Within float32 rounding of a
+            comparison a cell is ambiguous.
+        rest: The body rests on a wall when its smallest (n . c - d - r) / r lies within [-rest, rest]
+            (``warp_lamp.validate.WALL_REST``).
     """
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -151,28 +169,60 @@ def lamp_reference(
     counts = np.zeros((n, 3), dtype=np.int64)
     walls = np.zeros((0, 4)) if walls is None else np.asarray(walls, dtype=np.float64).reshape(-1, 4)
     wall_counts = np.zeros((len(walls), 3), dtype=np.int64)
+    gaps = wall_gaps(c[visible], r[visible], walls)
+    rests = np.abs(gaps) <= rest
     for a in range(3):
+        shape = tuple(int(x) for x in grid.counts[a])
+        both = [_lamp_cells(local_c, r, visible, grid, a, criterion, side == 0) for side in range(2)]
+        if len(walls):
+            both = _walled(both, walls, rests, grid, a, wall_counts, mask)
         for side in range(2):
             name = LAMPS[2 * a + side]
-            shape = tuple(int(x) for x in grid.counts[a])
-            wall_owners[name] = np.full(shape, -1)
+            own, dep, amb, took = both[side] if len(both[side]) == 4 else (*both[side], np.full(shape, -1))
+            wall_owners[name] = took
             if not mask >> (2 * a + side) & 1:
-                owners[name] = np.full(shape, -1)
-                depths[name] = np.full(shape, np.nan)
-                ambiguous[name] = np.zeros(shape, dtype=bool)
-                continue
-            own, dep, amb = _lamp_cells(local_c, r, visible, grid, a, criterion, side == 0)
-            if len(walls):
-                blocked, stop, wall = _ray_stops(walls, grid, a, side == 0)
-                local = dep - grid.origin[a]
-                beyond = (local > stop) if side == 0 else (local < stop)
-                tol = 8 * EPS32 * (np.abs(local) + np.abs(np.where(np.isfinite(stop), stop, 0.0)) + 1e-30)
-                amb = amb | ((own >= 0) & (np.abs(local - stop) <= tol))
-                own = np.where(blocked | beyond, -1, own)
-                dep = np.where(own >= 0, dep, np.nan)
-                wall_owners[name] = np.where(~blocked & (own < 0) & (wall >= 0), wall, -1)
-                took = wall_owners[name][wall_owners[name] >= 0]
-                np.add.at(wall_counts[:, a], took, 1 if side == 0 else -1)
+                own, dep, amb = np.full(shape, -1), np.full(shape, np.nan), np.zeros(shape, dtype=bool)
+                wall_owners[name] = np.full(shape, -1)
             owners[name], depths[name], ambiguous[name] = own, dep, amb
             np.add.at(counts[:, a], own[own >= 0], 1 if side == 0 else -1)
     return LampReference(owners, depths, ambiguous, counts, wall_owners, wall_counts)
+
+
+def _walled(both, walls, rests, grid: LampGrid, a: int, wall_counts, mask: int):
+    """Both lamps of axis a with the walls: (owner, depth, ambiguous, target wall) per side; adds the walls' counts
+    of the lamps that are on (targets and recoils) to ``wall_counts``."""
+    (own0, dep0, amb0), (own1, dep1, amb1) = both
+    wet, lo, hi, lo_wall, hi_wall = _ray_fluid(walls, grid, a)
+    e = dep0 - grid.origin[a]
+    x = dep1 - grid.origin[a]
+    lit = (own0 >= 0) & (own1 >= 0)
+    has_lo, has_hi = lo_wall >= 0, hi_wall >= 0
+    with np.errstate(invalid="ignore"):
+        body = wet & lit & ~(has_lo & (x <= lo)) & ~(has_hi & (e >= hi))
+        seal0 = has_lo & ((e <= lo) | rests[np.maximum(lo_wall, 0)])
+        seal1 = has_hi & ((x >= hi) | rests[np.maximum(hi_wall, 0)])
+
+    def tol(p, q):
+        return 8 * EPS32 * (np.abs(np.nan_to_num(p)) + np.abs(np.where(np.isfinite(q), q, 0.0)) + 1e-30)
+
+    # The kernels compare float32 depths with float64 crossings: within rounding, a comparison may go either way.
+    near = np.zeros(e.shape, dtype=bool)
+    for p, q in ((e, lo), (x, lo), (e, hi), (x, hi)):
+        with np.errstate(invalid="ignore"):
+            near |= lit & np.isfinite(q) & (np.abs(p - q) <= tol(p, q))
+    out = []
+    for side, (own, dep, _amb) in enumerate(both):
+        sign = 1 if side == 0 else -1
+        seal = seal0 if side == 0 else seal1
+        recoil = lo_wall if side == 0 else hi_wall
+        empty_target = hi_wall if side == 0 else lo_wall
+        loads = body & ~seal
+        target_wall = np.where(wet & ~body & (empty_target >= 0), empty_target, -1)
+        new_own = np.where(loads, own, -1)
+        if mask >> (2 * a + side) & 1:
+            took = target_wall[target_wall >= 0]
+            np.add.at(wall_counts[:, a], took, sign)
+            rec = recoil[loads & (recoil >= 0)]
+            np.add.at(wall_counts[:, a], rec, -sign)
+        out.append((new_own, np.where(new_own >= 0, dep, np.nan), amb0 | amb1 | near, target_wall))
+    return out

@@ -160,9 +160,10 @@ def attribution_bound(h, rho) -> np.ndarray:
 
 
 def _offset_inside(off, h, rho):
-    """Offset (i, j, k) is within rho: ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2``, each square as t * t."""
+    """Offset (i, j, k) is within rho: ``((i hx)^2 + (j hy)^2) + (k hz)^2 <= rho^2 (1 + 1e-9)``, each square as
+    t * t; the slack keeps an offset exactly rho away in, whatever the unit of length rounds h and rho to."""
     t = [off[..., a].astype(np.float64) * h[a] for a in range(3)]
-    return ((t[0] * t[0] + t[1] * t[1]) + t[2] * t[2]) <= rho * rho
+    return ((t[0] * t[0] + t[1] * t[1]) + t[2] * t[2]) <= rho * rho * (1.0 + 1e-9)
 
 
 def dilation_table(h, rho) -> np.ndarray:
