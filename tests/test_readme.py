@@ -124,9 +124,9 @@ def test_voxel_column_of_table_1():
 
 
 def test_yade_recipe_makes_its_venv_from_debians_python():
-    """Every YADE recipe (README, docs/engines.md, the example, the adapter) makes the venv with /usr/bin/python3:
+    """Every YADE recipe (the engines page, the example, the adapter) makes the venv with /usr/bin/python3:
     /usr/bin/yade runs Debian's Python, and a python3 first on PATH (pyenv, conda) would not load YADE."""
-    for name in ("README.md", "docs/engines.md", "examples/yade_sphere_test.py", "warp_lamp/engines/yade.py"):
+    for name in ("docs/guide/engines.md", "examples/yade_sphere_test.py", "warp_lamp/engines/yade.py"):
         text = (ROOT / name).read_text()
         venvs = re.findall(r"(\S+) -m venv --system-site-packages ~/yade-env", text)
         assert venvs and set(venvs) == {"/usr/bin/python3"}, (name, venvs)
