@@ -1,10 +1,11 @@
-"""Every Python block of README.md runs as written, each on its own (a reader copies one block, not the page), in
-a fresh namespace, and ends with an assert of its result (a block that runs but computes nonsense fails); a block
-that cannot run alone says so with ``<!-- fragment: why -->`` on the line before it, and still compiles.
+"""Every Python block of README.md and of the documentation's pages (docs/getting-started.md, docs/guide/*.md)
+runs as written, each on its own (a reader copies one block, not the page), in a fresh namespace, and ends with an
+assert of its result (a block that runs but computes nonsense fails); a block that cannot run alone says so with
+``<!-- fragment: why -->`` on the line before it, and still compiles.
 
-The README's measured figures that any machine can recompute (the CPU ones; GPU timings live in result files):
-each is asserted to its printed precision, so that a change that moves one fails here instead of silently making
-the README wrong. bench/mutation/README_CLAIMS.md lists every figure and where its evidence is."""
+The measured figures of the README and the pages that any machine can recompute (the CPU ones; GPU timings live
+in result files): each is asserted to its printed precision, so that a change that moves one fails here instead of
+silently making the text wrong. bench/mutation/README_CLAIMS.md lists every figure and where its evidence is."""
 
 import ast
 import re
@@ -103,7 +104,7 @@ def test_lone_sphere_accuracy_table(device, criterion):
 
 
 def test_paper_table_1_figures():
-    """README "Paper's Table 1": with the line ends included the counts would be 4,873 (r = 10) and 68,075
+    """The porosity page's "Paper's Table 1": with the line ends included the counts would be 4,873 (r = 10) and 68,075
     (r = 25); the paper's counts are 0.3% under the ball's volume at r = 10, 2.2% under at 25 and 17% under at 4,
     but 4.4% over at r = 2 and 1.0% over at r = 5."""
     assert len(midpoint_sphere_offsets(10, line_ends=True)) == 4873
@@ -114,7 +115,7 @@ def test_paper_table_1_figures():
 
 
 def test_voxel_column_of_table_1():
-    """README Table 1's voxel column (the bench's sub-cell-centre count, 64 seeded offsets): RMS 4,190.3 and error
+    """Table 1's voxel column (porosity page; the bench's sub-cell-centre count, 64 offsets): RMS 4,190.3 and error
     0.23% at r = 10, 65,450.8 and 0.04% at r = 25, 30.9% at r = 1; the midpoint column equals the paper's."""
     rows = {t["r"]: t for t in table_1()}
     assert [rows[r]["midpoint"] for r in range(1, 26)] == PAPER_TABLE_1
