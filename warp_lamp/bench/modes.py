@@ -300,7 +300,7 @@ def section_area(
         criterion1_cpd: Resolutions of criterion 1 [cells per mean diameter]; 4 is the reference of ``ratio``.
         area_cpd: Resolutions of the area criterion.
         estimators: ``(resolver, depth_slots)`` pairs of the area criterion (8 x 8 sub-points).
-        overlap: The strongly overlapping polydisperse ball, measured as the specimen at ``overlap_cpd`` (error only, not
+        overlap: The overlapping polydisperse ball, measured as the specimen at ``overlap_cpd`` (error only, not
             timed): a scene, True for :func:`~warp_lamp.scenes.scene_overlapping_polydisperse`, False for none.
         overlap_cpd: Resolutions of the overlapping body.
         lone_samples: Random offsets of the lone sphere per resolver and resolution (0: none).
