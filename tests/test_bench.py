@@ -6,8 +6,6 @@ end-to-end quick run.
 `bench porosity --paper` says how long it takes before it starts, and its progress bar covers all of it."""
 
 import json
-import subprocess
-import sys
 from typing import ClassVar
 
 import numpy as np
@@ -28,60 +26,23 @@ from warp_lamp.scenes import (
 )
 
 
-def test_bench_quick_runs_and_writes_json(tmp_path):
-    """`warp-lamp bench --quick --json` runs on the CPU, prints the tables and writes consistent JSON."""
+def test_bench_quick_runs_and_writes_json(tmp_path, capsys):
+    """`warp-lamp bench --quick --repeats 1 --json` (the CLI's main, in this process) runs on the CPU, prints the
+    tables and writes consistent JSON: the lone-sphere error falls with resolution, the forces balance exactly and
+    the specimen's mean pressure is under P (the loads act at the particles' centres)."""
     out = tmp_path / "bench.json"
-    proc = subprocess.run(
-        [sys.executable, "-m", "warp_lamp", "bench", "--quick", "--device", "cpu", "--json", str(out), "--no-progress"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "atomic_min" in proc.stdout and "E_area" in proc.stdout
+    argv = ["bench", "--quick", "--device", "cpu", "--json", str(out), "--no-progress", "--repeats", "1"]
+    assert cli.main(argv) == 0
+    stdout = capsys.readouterr().out
+    assert "atomic_min" in stdout and "E_area" in stdout
     result = json.loads(out.read_text())
     assert result["devices"]["cpu"]["copy_GBps"] > 0
     speed = result["speed"][0]
     assert speed["n"] > 1000 and speed["eager_s"] > 0 and speed["bvh_cast_s"] > 0 and speed["reference_s"] > 0
     errors = {(e["criterion"], e["cells_per_diameter"]): e for e in result["errors"]}
-    assert errors[(1, 16)]["E_area"] < errors[(1, 2)]["E_area"]
+    assert errors[(1, 16)]["E_area"] < errors[(1, 4)]["E_area"] < errors[(1, 2)]["E_area"]
     assert all(e["force_sum"] == [0.0, 0.0, 0.0] for e in result["errors"])
     assert 0.7 < errors[(1, 4)]["mean_pressure_over_P"] < 1.0
-
-
-def test_bench_porosity_quick_with_paper(tmp_path):
-    """`warp-lamp bench porosity --quick --paper` measures every method against exact and reproduces Table 1."""
-    out = tmp_path / "porosity.json"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "warp_lamp",
-            "bench",
-            "porosity",
-            "--quick",
-            "--paper",
-            "--device",
-            "cpu",
-            "--json",
-            str(out),
-            "--no-progress",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    saved = json.loads(out.read_text())
-    rows = saved["bench"]["rows"]
-    assert {r["method"] for r in rows} == {"centroid", "polyhedron", "exact", "voxel", "midpoint"}
-    voxel = [r["rms"] for r in rows if r["method"] == "voxel"]
-    assert voxel == sorted(voxel, reverse=True)
-    assert [t["midpoint"] for t in saved["paper"]["table_1"]] == [t["paper"] for t in saved["paper"]["table_1"]]
-    polyhedron = saved["paper"]["cases"][0]["methods"]["polyhedron"]
-    assert polyhedron["at_most_0"] > 0.25 and saved["paper"]["cases"][0]["methods"]["voxel"]["at_most_0"] == 0
 
 
 @pytest.fixture(scope="module")
@@ -266,11 +227,12 @@ def test_tables_json_and_plot(tiny_result, tmp_path):
 
 
 def test_bench_modes_quick_end_to_end():
-    """bench_modes(quick) on the CPU: every section, strict JSON, and the figures the issues stand on: the slot's
-    walls and floor >= 0.9 with rho = one mean radius (issue 10), sub-points D = 3 at 3 cells per diameter under 1%
-    where criterion 1 at 4 is over 5% (issue 15), the rotated block's error at least doubled under an
-    axis-aligned lamp and restored with a rotated one (issue 12), equal counts on both depth paths (issue 11)."""
-    result = bm.bench_modes(["cpu"], quick=True, progress=False)
+    """bench_modes(quick) on the CPU, one repeat (no time is checked): every section, strict JSON, and the figures
+    the issues stand on: the slot's walls and floor >= 0.9 with rho = one mean radius (issue 10), sub-points D = 3
+    at 3 cells per diameter under 1% where criterion 1 at 4 is over 5% (issue 15), the rotated block's error at
+    least doubled under an axis-aligned lamp and restored with a rotated one (issue 12), equal counts on both depth
+    paths (issue 11)."""
+    result = bm.bench_modes(["cpu"], quick=True, progress=False, repeats=1)
     assert json.loads(json.dumps(result, allow_nan=False)) == result
     assert [len(result[k]) for k in ("small_body", "area", "wetted", "frames")] == [4, 1, 4, 14]
     assert all(r["same_counts"] for r in result["small_body"])
@@ -337,8 +299,9 @@ def test_the_progress_bar_covers_the_paper_experiment(small):
     assert kinds.count("step") == next(e[1] for e in Recorder.events if e[0] == "open")
 
 
-def test_bench_porosity_paper_says_how_long_before_it_starts(small, capsys, monkeypatch):
-    """The CLI prints the expected time of --paper on stderr before the first porosity call (the full run: 77 s of
+def test_bench_porosity_paper_says_how_long_before_it_starts(small, capsys, monkeypatch, tmp_path):
+    """The CLI (in this process, on a few spheres) writes every method's rows, the voxel error falling with
+    subdivision, and prints the expected time of --paper on stderr before the first porosity call (the full run: 77 s of
     CPU time, 4 min 37 s wall-clock, measured on the shared 2-core dev machine; --quick: about a minute), and the
     run completes."""
     seen = []
@@ -350,7 +313,22 @@ def test_bench_porosity_paper_says_how_long_before_it_starts(small, capsys, monk
         return inner(*args, **kwargs)
 
     monkeypatch.setattr(bp, "porosity", first)
-    assert cli.main(["bench", "porosity", "--quick", "--paper", "--device", "cpu", "--no-progress"]) == 0
+    out = tmp_path / "porosity.json"
+    argv = ["bench", "porosity", "--quick", "--paper", "--device", "cpu", "--no-progress", "--json", str(out)]
+    assert cli.main(argv) == 0
     assert "bench porosity --quick --paper takes about a minute" in seen[0]
+    rows = json.loads(out.read_text())["bench"]["rows"]
+    assert {r["method"] for r in rows} == {"centroid", "polyhedron", "exact", "voxel", "midpoint"}
+    voxel = [r["rms"] for r in rows if r["method"] == "voxel"]
+    assert len(voxel) > 1 and voxel == sorted(voxel, reverse=True)
     assert "77 s of CPU time on a 2-core machine, 4 min 37 s while it was shared" in bp.paper_note(quick=False)
     assert "the progress bar covers all of it" in bp.paper_note(quick=False)
+
+
+def test_paper_experiment_polyhedron_reads_zero_where_voxel_does_not():
+    """Section 3.2 of the paper on the quick box (2.5 mm spheres, 587 of them, overlapping densely): the
+    polyhedron method reads porosity <= 0 in over a quarter of the cells (measured 98%), the voxel method in none."""
+    out = bp.paper_experiment("cpu", radii=(0.0025,), subdivisions=20, quick=True)
+    methods = out["cases"][0]["methods"]
+    assert methods["polyhedron"]["at_most_0"] > 0.25 and methods["voxel"]["at_most_0"] == 0
+    assert [t["midpoint"] for t in out["table_1"]] == [t["paper"] for t in out["table_1"]]

@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -216,6 +217,155 @@ def test_yade_lamp_inside_yade(yade, tmp_path):
     assert res["cleared"]
     assert res["calls"] == 4
     assert res["cost_keys"] == [["calls", "cpu", "wall"], *[sorted(["read", "lamp", "write", "total"])] * 2]
+
+
+# --- YadeLamp's Python side, without YADE -------------------------------------------------------------------------
+
+
+class FakeBody:
+    """A YADE body as the adapter reads it: ``id``, ``shape`` (with ``radius`` for a sphere), ``state.pos``."""
+
+    def __init__(self, i, shape, pos):
+        self.id = i
+        self.shape = shape
+        self.state = SimpleNamespace(pos=tuple(pos))
+
+
+class FakeOmega:
+    """YADE's ``O`` as far as YadeLamp and yade_contacts use it: ``bodies`` (iterated in id order, skipping erased
+    ids; indexed by id), ``forces.setPermF`` (recorded, one entry per call) and ``interactions``."""
+
+    def __init__(self, bodies, interactions=()):
+        self._bodies = {b.id: b for b in bodies}
+        self.writes = []
+        self.perm = {}
+        self.interactions = list(interactions)
+
+        def set_perm(i, f):
+            assert isinstance(i, int) and len(f) == 3
+            self.writes.append((i, tuple(f)))
+            self.perm[i] = np.array(f, dtype=np.float64)
+
+        self.forces = SimpleNamespace(setPermF=set_perm)
+
+    @property
+    def bodies(self):
+        outer = self
+
+        class Bodies:
+            def __iter__(self):
+                return iter(outer._bodies[i] for i in sorted(outer._bodies))
+
+            def __getitem__(self, i):
+                return outer._bodies[i]
+
+        return Bodies()
+
+    def coords(self, axis):
+        """``yade._utils.coordsAndDisplacements(axis)``: every body's coordinate, in ``O.bodies`` order."""
+        pos = [b.state.pos[axis] for b in self.bodies]
+        return pos, [0.0] * len(pos)
+
+
+@pytest.fixture
+def fake_yade(monkeypatch):
+    """Stand-in modules ``yade``, ``yade.wrapper`` (``Sphere``) and ``yade._utils`` over a FakeOmega: a box at id 0,
+    an erased id 1, then the lattice ball's spheres at ids 2 .. N + 1, a facet after them."""
+    import sys
+    import types
+
+    class Sphere:
+        def __init__(self, radius):
+            self.radius = radius
+
+    class Box:
+        pass
+
+    s = scene_lattice_ball(0.04, 0.005)
+    bodies = [FakeBody(0, Box(), (0.0, 0.0, -1.0))]
+    bodies += [FakeBody(2 + k, Sphere(float(r)), c) for k, (c, r) in enumerate(zip(s.centers, s.radii, strict=True))]
+    bodies.append(FakeBody(2 + s.n, Box(), (5.0, 5.0, 5.0)))
+    omega = FakeOmega(bodies)
+    yade = types.ModuleType("yade")
+    yade.Omega = lambda: omega
+    wrapper = types.ModuleType("yade.wrapper")
+    wrapper.Sphere = Sphere
+    utils = types.ModuleType("yade._utils")
+    utils.coordsAndDisplacements = omega.coords
+    yade.wrapper, yade._utils = wrapper, utils
+    for name, module in (("yade", yade), ("yade.wrapper", wrapper), ("yade._utils", utils)):
+        monkeypatch.setitem(sys.modules, name, module)
+    return omega, s
+
+
+def test_yade_lamp_reads_positions_and_writes_forces_by_body_id(fake_yade):
+    """YadeLamp on a stand-in for YADE's O: it finds the sphere bodies (not the boxes, not the erased id), reads
+    their centres through coordsAndDisplacements in O.bodies order mapped back to its ids, and sets each sphere's
+    permanent force, by body id, to lamp_forces on its grid (float64, bitwise); later calls write only the rows
+    that changed (none at rest, the moved sphere's neighbourhood after one moves), rewrite_all writes all again,
+    clear sets zeros; a body missing from O.bodies or a non-sphere among the ids is refused by name."""
+    from warp_lamp.engines import YadeLamp
+
+    omega, s = fake_yade
+    lamp = YadeLamp(1e5)
+    ids = list(range(2, 2 + s.n))
+    assert lamp.ids.tolist() == ids
+    np.testing.assert_array_equal(lamp.positions(), s.centers)
+    np.testing.assert_array_equal(lamp.radii, s.radii)
+    lamp()
+    expected = wl.lamp_forces(s.centers, s.radii, 1e5, grid=lamp.core.grid, device="cpu")
+    assert sorted(i for i, _ in omega.writes) == ids and lamp.written == s.n
+    np.testing.assert_array_equal(np.array([omega.perm[i] for i in ids]), expected)
+    assert 0 not in omega.perm and 1 not in omega.perm and 2 + s.n not in omega.perm
+    assert np.count_nonzero(np.abs(expected).sum(axis=1)) > s.n // 4  # the outer spheres are loaded
+    omega.writes.clear()
+    lamp()
+    assert lamp.written == 0 and omega.writes == []
+    # Move one sphere outward along x: its force and its neighbours' change, and only those rows are written.
+    k = int(np.argmax(s.centers[:, 0]))
+    omega._bodies[2 + k].state.pos = tuple(s.centers[k] + [1e-3, 0.0, 0.0])
+    moved = s.centers.copy()
+    moved[k, 0] += 1e-3
+    lamp()
+    after = wl.lamp_forces(moved, s.radii, 1e5, grid=lamp.core.grid, device="cpu")
+    changed = np.flatnonzero(np.any(after != expected, axis=1))
+    assert 0 < len(changed) < s.n and k in changed
+    assert sorted(i for i, _ in omega.writes) == [2 + int(c) for c in changed] and lamp.written == len(changed)
+    np.testing.assert_array_equal(np.array([omega.perm[i] for i in ids]), after)
+    omega.writes.clear()
+    lamp.rewrite_all()
+    lamp()
+    assert lamp.written == s.n == len(omega.writes)
+    lamp.clear()
+    assert all(np.all(omega.perm[i] == 0.0) for i in ids)
+    assert lamp.calls == 4 and set(lamp.cost()) >= {"wall", "cpu"}
+    with pytest.raises(ValueError, match=r"ids: body 1 \(index 1\) is not in O.bodies"):
+        YadeLamp(1e5, ids=[2, 1], omega=omega)
+    with pytest.raises(ValueError, match="ids: every body must be a sphere"):
+        YadeLamp(1e5, ids=[0, 2], omega=omega)
+
+
+def test_yade_contacts_sign_and_ids_on_a_stand_in(fake_yade):
+    """yade_contacts on stand-in interactions: real contacts among the ids only, as index pairs into ids, each
+    with the force on its first particle, -(normalForce + shearForce) (YADE applies the sum to id2)."""
+    from warp_lamp.engines import yade_contacts
+
+    omega, _ = fake_yade
+
+    def contact(i, j, fn, fs, real=True):
+        return SimpleNamespace(id1=i, id2=j, isReal=real, phys=SimpleNamespace(normalForce=fn, shearForce=fs))
+
+    fn, fs = np.array([1.0, 2.0, 3.0]), np.array([0.5, -0.25, 0.0])
+    omega.interactions = [
+        contact(3, 5, fn, fs),
+        contact(5, 4, 2 * fn, fs),
+        contact(3, 4, fn, fs, real=False),
+        contact(0, 3, fn, fs),  # a box: not among the ids
+        contact(3, 99, fn, fs),  # past the largest id
+    ]
+    pairs, forces = yade_contacts([3, 4, 5], omega=omega)
+    np.testing.assert_array_equal(pairs, [[0, 2], [2, 1]])
+    np.testing.assert_array_equal(forces, [-(fn + fs), -(2 * fn + fs)])
 
 
 def test_yade_alpha_caps_balance_and_point_inward(yade):

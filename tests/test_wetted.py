@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 from helpers import DEVICES
+from wetted_brute import brute_counts, brute_fluid
 
 import warp_lamp as wl
 from warp_lamp.bench.wetted import lone_sphere_convergence
@@ -11,7 +12,12 @@ from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.lamp import pressure_area
 from warp_lamp.reference.wetted import dilation_table as reference_table
 from warp_lamp.reference.wetted import wetted_reference
-from warp_lamp.scenes import scene_cavity_block, scene_slot_block, scene_tunnel_block
+from warp_lamp.scenes import (
+    scene_cavity_block,
+    scene_overlapping_polydisperse,
+    scene_slot_block,
+    scene_tunnel_block,
+)
 from warp_lamp.validate import check_particles
 from warp_lamp.wetted import (
     WettedSurface,
@@ -87,10 +93,10 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
 #: (threads per sphere, bits per thread, near list, prune from, exact-test queue): the tests queued or not, the
 #: queue too small for the band (the rest tested by the classify threads), each path of the exact test.
 DECOMPOSITIONS = (
-    (3, 8, 0, 0, 1 << 20),
-    (8, 1, 2, 0, 300),
-    (1, 32, 64, 65, 0),
-    (1, 32, 64, 0, 1 << 20),
+    (3, 8, 0, 0, 1 << 20, 128, True, 8),
+    (8, 1, 2, 0, 300, 0, False, 8),
+    (1, 32, 64, 65, 0, 5, True, 1),
+    (1, 32, 64, 0, 1 << 20, 128, False, 8),
 )
 
 
@@ -108,13 +114,19 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
         assert sum(len(ref.crossings[a]["face"]) for a in range(3)) > 1000
     # Every thread decomposition (threads per sphere, bits per crossing thread, the exact tests queued, with the
     # queue overflowing or not) and every path of the exact test (its local list of near spheres cut to 0 or 2:
-    # the second gather and the bin-walk search; no pruning of covered spheres) give the same answer.
-    for slices, bits, near, prune, capacity in DECOMPOSITIONS:
-        surface._slices, surface._bits = slices, bits
-        surface._box.near_list, surface._box.prune_from = near, prune
+    # the second gather and the bin-walk search; no pruning of covered spheres; the spheres gathered once per point
+    # for its candidates' searches, none or only 5 of them: the bins walked per candidate; the triple points solved
+    # once per update or by each voxel, and once per update with one slot per sphere: the overflowing spheres' by
+    # each voxel) give the same answer.
+    for slices, bits, near, prune, capacity, gather, patches, tri_cap in DECOMPOSITIONS:
+        surface._slices, surface._bits, surface._patches = slices, bits, patches
+        surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
+        surface._box.tri_cap = tri_cap
         surface._exact_queue(capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
-        assert_matches(surface, ref)
+        d = assert_matches(surface, ref)
+        if patches and tri_cap == 1 and rho >= 0.25:
+            assert d.triple_overflow > 0  # spheres past one kept triple: their triples solved per voxel
 
 
 def test_float64_inputs_differ_only_where_flagged(device, rng):
@@ -260,17 +272,16 @@ def test_lone_sphere_takes_exactly_criterion_1s_cells_for_every_rho(device, rng)
 
 
 def test_lone_sphere_load_converges_for_every_rho(device):
-    """The lone sphere's -x load over P pi r^2 converges to 1 as the cells shrink, for every probe radius (0 to 4
-    cells), and its RMS error over random grid offsets stays within 1.5x criterion 1's on the same grids plus 1%."""
+    """The lone sphere's -x load over P pi r^2, for every probe radius (0 to 4 cells), equals criterion 1's on the
+    same grid bitwise at every random grid offset (the fluid is the sphere's whole outside: the same cells), and
+    criterion 1's converges to 1 as the cells shrink (RMS 9.3%, 2.0%, 0.82% at 4, 8, 16 cells per diameter)."""
     result = lone_sphere_convergence(cells=(4, 8, 16), offsets=12, seed=7, device=device)
     first = {r["cells_per_diameter"]: r for r in result["rows"] if r["rho_cells"] is None}
     for row in result["rows"]:
-        if row["rho_cells"] is None:
-            continue
-        assert row["rms"] <= 1.5 * first[row["cells_per_diameter"]]["rms"] + 0.01, row
-    for k in {r["rho_cells"] for r in result["rows"]} - {None}:
-        rms = [r["rms"] for r in result["rows"] if r["rho_cells"] == k]
-        assert rms[0] > rms[1] > rms[2] and rms[2] < 0.02, (k, rms)
+        assert row["loads"] == first[row["cells_per_diameter"]]["loads"], row
+    assert len(result["rows"]) == 3 * 7
+    rms = [first[k]["rms"] for k in (4, 8, 16)]
+    assert rms[0] > rms[1] > rms[2] and rms[2] < 0.01, rms
 
 
 def test_separated_spheres_each_take_criterion_1s_cells_alone(device, rng):
@@ -742,9 +753,10 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune, capacity in DECOMPOSITIONS:
-        surface._slices, surface._bits = slices, bits
-        surface._box.near_list, surface._box.prune_from = near, prune
+    for slices, bits, near, prune, capacity, gather, patches, tri_cap in DECOMPOSITIONS:
+        surface._slices, surface._bits, surface._patches = slices, bits, patches
+        surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
+        surface._box.tri_cap = tri_cap
         surface._exact_queue(capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
@@ -912,3 +924,47 @@ def test_wetted_forces_do_not_depend_on_the_unit_of_length(device, scale):
         g1 = wl.LampGrid.enclosing(c, r, probe_radius=kw.get("probe_radius", 0.0))
         gs = wl.LampGrid.enclosing(c * scale, r * scale, probe_radius=kws.get("probe_radius", 0.0))
         np.testing.assert_array_equal(gs.counts, g1.counts)
+
+
+@pytest.fixture(scope="module")
+def brute_packing():
+    """40 overlapping polydisperse spheres (radii 0.25-0.75, mean 0.5, overlaps up to 30%), rho = 0.25, a box on
+    whole quarter cells around them, and the brute-force fluid on a 1/32 lattice, without and with a wall through
+    the packing's middle (z at the median centre, the fluid above)."""
+    s = scene_overlapping_polydisperse(40, solid_fraction=0.4)
+    c, r, rho = s.centers, s.radii, 0.25
+    lo = np.floor(((c - r[:, None]).min(axis=0) - rho - 0.5) / 0.25) * 0.25
+    hi = np.ceil(((c + r[:, None]).max(axis=0) + rho + 0.5) / 0.25) * 0.25
+    walls = [((0.0, 0.0, float(np.median(c[:, 2]))), (0.0, 0.0, 1.0))]
+    fluids = {w: brute_fluid(c, r, rho, lo, hi, walls=walls if w else (), g=1 / 32) for w in (False, True)}
+    return c, r, rho, lo, hi, walls, fluids
+
+
+@pytest.mark.parametrize("wall", [False, True], ids=["spheres", "wall"])
+def test_wetted_loads_converge_to_a_brute_force_fluid(device, brute_packing, wall):
+    """Independent accuracy of surfaces="all": each particle's count on each low and high lamp against a brute
+    force (tests/wetted_brute.py: probe centres on a 1/32 lattice flood-filled from outside, the fluid within rho of
+    them by an exact distance transform, each lamp ray walked in 1/32 steps; nothing of the mode's voxel rules).
+    The mode decides reach on the voxel centres, so a throat narrower than about a voxel is closed to it: it finds
+    fewer crossings than the continuum (never more, beyond the lattice's own rounding), and the gap closes as the
+    cells shrink. Per particle and lamp axis, |count difference| x h^2 / (pi r^2), RMS: at 4 and 8 cells per mean
+    diameter measured 25.7% and 17.2% (spheres), 15.7% and 7.9% (with the wall), bounded by 30% and 21%, 19% and
+    10%; the total crossings 80% and 87% of the brute force's (spheres), 77-89% and 96-98% (with the wall; the
+    brute force itself finds more as its lattice is refined: 1,096 crossings at 1/16, 1,187 at 1/32)."""
+    c, r, rho, lo, hi, walls, fluids = brute_packing
+    bound = {False: (0.30, 0.21), True: (0.19, 0.10)}[wall]
+    share = {False: (0.75, 0.83), True: (0.72, 0.92)}[wall]
+    rms = []
+    for k, h in enumerate((0.25, 0.125)):
+        grid = wl.LampGrid(lo, hi, h)
+        counts = np.round((hi - lo) / h).astype(int)
+        brute = brute_counts(fluids[wall], lo, counts, h)
+        for lamps, want in zip((["-x", "-y", "-z"], ["+x", "+y", "+z"]), brute, strict=True):
+            f = wetted_forces(c, r, 1.0, probe_radius=rho, grid=grid, lamps=lamps, walls=walls if wall else None,
+                              device=device)  # fmt: skip
+            got = np.rint(f / (h * h)).astype(np.int64)
+            err = np.abs(got - want) * h * h / (np.pi * r[:, None] ** 2)
+            rms.append(float(np.sqrt(np.mean(err**2))))
+            assert rms[-1] < bound[k], (h, lamps, rms[-1])
+            assert share[k] * np.abs(want).sum() < np.abs(got).sum() <= 1.01 * np.abs(want).sum(), (h, lamps)
+    assert max(rms[2:]) < 0.8 * min(rms[:2]), rms

@@ -850,7 +850,7 @@ def _first_run_note(args, device) -> None:
     if args.criterion == "area":
         modules.append("warp_lamp.kernels.area")
     if args.surfaces == "all":
-        modules.append("warp_lamp.kernels.wetted")
+        modules += ["warp_lamp.kernels.wetted_sweeps", "warp_lamp.kernels.wetted_cross", "warp_lamp.kernels.wetted"]
     if args.want_porosity:
         modules.append("warp_lamp.kernels.porosity")
     import warp as wp

@@ -51,6 +51,9 @@ import warp as wp
 from warp_lamp.frames import pressure_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import wetted as K
+from warp_lamp.kernels import wetted_base as KB
+from warp_lamp.kernels import wetted_cross as KC
+from warp_lamp.kernels import wetted_sweeps as KS
 from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.validate import (
     DEFAULT_MAX_BYTES,
@@ -76,8 +79,9 @@ __all__ = [
     "wetted_nbytes",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
-BYTES_PER_PARTICLE = 36
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag, and
+#: its triple points (a count and ``TRI_CAP`` slots of three int32).
+BYTES_PER_PARTICLE = 36 + 4 + 12 * KB.TRI_CAP
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
@@ -254,7 +258,7 @@ def _layout(grid: LampGrid, rho: float) -> dict:
     # Wall runs along x are walked exactly this far past the box: beyond every index a kernel asks about (a word's
     # padding, a dilation's reach, a candidate's cube corner).
     pad = int(max(table_band.max(), table_band.shape[0], table_band.shape[1])) + 64
-    small = 4 * (table.size + table_band.size) + 4 * (K.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
+    small = 4 * (table.size + table_band.size) + 4 * (KB.N_DIAG + 4)  # offset tables, diagnostics, r_max, flags
     # Segments of about sqrt(n) rows: summary, carry and apply threads then each walk ~2 sqrt(n) words.
     seg = [0] + [max(4, round(float(np.sqrt(float(n[a]))))) for a in (1, 2)]
     n_seg = [0] + [-(-int(n[a]) // seg[a]) for a in (1, 2)]
@@ -353,6 +357,8 @@ class WettedDiagnostics:
         force: Resultant force on the particles [N], shape (3,), when a pressure was given.
         wall_forces: Force on each wall [N], shape (W, 3), when a pressure was given (world coordinates when the
             lamp gives it, ``ShiningLamp.diagnostics``; else the frame's).
+        triple_overflow: Spheres with more valid triple points than the once-per-update solve keeps
+            (``TRI_CAP``); the exact test solves their triples itself (the same answer, slower).
     """
 
     counts: np.ndarray
@@ -381,6 +387,7 @@ class WettedDiagnostics:
     thin_faces: dict | None = None
     force: np.ndarray | None = None
     wall_forces: np.ndarray | None = None
+    triple_overflow: int = 0
 
 
 class WettedSurface:
@@ -484,15 +491,18 @@ class WettedSurface:
         self.h = lay["h"]
         self.table = lay["table"]
         self.table_band = lay["table_band"]
-        box = K.WetBox()
+        box = KB.WetBox()
         box.n = wp.vec3i(*self.shape)
         box.nwx = lay["nwx"]
         box.n_words = lay["n_words"]
         box.h = wp.vec3d(*self.h)
         box.rho = self.probe_radius
         box.diag = voxel_diagonal(self.h)
-        box.near_list = K.NEAR_LIST
-        box.prune_from = K.PRUNE_FROM
+        box.near_list = KB.NEAR_LIST
+        box.prune_from = KB.PRUNE_FROM
+        box.gather = KB.GATHER
+        box.tri_cap = KB.TRI_CAP
+        box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
         box.bin_edge = lay["edge"]
@@ -532,7 +542,7 @@ class WettedSurface:
         self.thin_faces = wp.zeros(sum(self._faces) if keep_owners else 0, dtype=wp.int32, device=d)
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
-        self.diag = wp.zeros(K.N_DIAG, dtype=wp.int32, device=d)
+        self.diag = wp.zeros(KB.N_DIAG, dtype=wp.int32, device=d)
         # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
         # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
         # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
@@ -545,6 +555,15 @@ class WettedSurface:
         self.hits = wp.zeros(0, dtype=wp.int32, device=d)
         self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
         self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
+        self.tri_n = wp.zeros(0, dtype=wp.int32, device=d)
+        self.tri = wp.zeros(0, dtype=wp.vec3i, device=d)
+        self._no_tri_n = wp.empty(0, dtype=wp.int32, device=d)
+        self._no_tri = wp.empty(0, dtype=wp.vec3i, device=d)
+        # The triple points solved once per update (``wet_triples``) on CUDA, where the exact test's time is its
+        # slowest tests' and triples are most of their candidates; on the CPU, where the mean counts, solving every
+        # triple near the surface once measured slower than the few each tested voxel meets (bench/NOTES.md).
+        # Either way the same answer (tests switch it).
+        self._patches = bool(d.is_cuda)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
@@ -572,6 +591,8 @@ class WettedSurface:
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.tri_n = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self.tri = wp.zeros(n * KB.TRI_CAP, dtype=wp.vec3i, device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -611,8 +632,8 @@ class WettedSurface:
         ny, nz = self.shape[1], self.shape[2]
         nw = box.n_words
         wp.launch(
-            K.wet_clear,
-            dim=max(n, K.N_DIAG, 1),
+            KS.wet_clear,
+            dim=max(n, KB.N_DIAG, 1),
             inputs=[n],
             outputs=[self.counts, self.hits, self.diag, self.rmax, self.cond, self.wall_counts],
             device=d,
@@ -629,7 +650,7 @@ class WettedSurface:
             # Enough threads to fill a GPU: a small body gets up to 8 per sphere, one per few z layers.
             slices = self._slices or self._auto_slices(n)
             wp.launch(
-                K.wet_rasterize,
+                KS.wet_rasterize,
                 dim=n * slices,
                 inputs=[positions, radii, active, box, slices],
                 outputs=[self.blocked, self.solid, self.heads, self.next_in_bin, self.rmax, self.diag],
@@ -637,46 +658,50 @@ class WettedSurface:
             )
         if self.n_walls:
             wp.launch(
-                K.wet_rasterize_walls, dim=ny * nz, inputs=[box, walls], outputs=[self.blocked, self.solid], device=d
+                KS.wet_rasterize_walls, dim=ny * nz, inputs=[box, walls], outputs=[self.blocked, self.solid], device=d
             )
 
         def round_body():
             wp.launch(
-                K.wet_sweep_x, dim=ny * nz, inputs=[box, walls, self.blocked, self.cond], outputs=[self.reach], device=d
+                KS.wet_sweep_x,
+                dim=ny * nz,
+                inputs=[box, walls, self.blocked, self.cond],
+                outputs=[self.reach],
+                device=d,
             )
             for axis in (1, 2):
                 seg, n_seg, cols = self._seg[axis], self._n_seg[axis], self._columns[axis]
                 segs = [self.seg_pass, self.seg_up, self.seg_down]
                 wp.launch(
-                    K.wet_scan_summary,
+                    KS.wet_scan_summary,
                     dim=cols * n_seg,
                     inputs=[box, axis, seg, n_seg, self.blocked, self.reach, self.cond],
                     outputs=segs,
                     device=d,
                 )
                 wp.launch(
-                    K.wet_scan_carry,
+                    KS.wet_scan_carry,
                     dim=cols,
                     inputs=[box, axis, walls, n_seg, self.seg_pass, self.cond],
                     outputs=segs[1:],
                     device=d,
                 )
                 wp.launch(
-                    K.wet_scan_apply,
+                    KS.wet_scan_apply,
                     dim=cols * n_seg,
                     inputs=[box, axis, seg, n_seg, self.blocked, self.seg_up, self.seg_down, self.cond],
                     outputs=[self.reach],
                     device=d,
                 )
             wp.launch(
-                K.wet_frontier,
+                KS.wet_frontier,
                 dim=nw,
                 inputs=[box, walls, self.blocked, self.reach, self.cond],
                 outputs=[self.frontier],
                 device=d,
             )
             wp.launch(
-                K.wet_round_end,
+                KS.wet_round_end,
                 dim=1,
                 inputs=[self.max_rounds],
                 outputs=[self.frontier, self.cond, self.diag, self.nonconverged_total],
@@ -699,9 +724,9 @@ class WettedSurface:
         ):
             wy, wz = dims[0] - 1, dims[1] - 1
             wp.launch(
-                K.wet_dilate_y, dim=nw, inputs=[box, walls, wy, wz, self.reach, table], outputs=[self.planes], device=d
+                KS.wet_dilate_y, dim=nw, inputs=[box, walls, wy, wz, self.reach, table], outputs=[self.planes], device=d
             )
-            wp.launch(K.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
+            wp.launch(KS.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
         if last < 3:
             return
         if n > 0:
@@ -710,6 +735,29 @@ class WettedSurface:
                 dim=n,
                 inputs=[positions, radii, active, box, self.reach],
                 outputs=[self.exposed],
+                device=d,
+            )
+        tri_n, tri = self._no_tri_n, self._no_tri
+        if n > 0 and self._patches:
+            tri_n, tri = self.tri_n, self.tri
+            tri_n.zero_()
+            slices = 8 if d.is_cuda else 1
+            wp.launch(
+                K.wet_triples,
+                dim=n * slices,
+                inputs=[
+                    positions,
+                    radii,
+                    box,
+                    walls,
+                    self.reach,
+                    self.heads,
+                    self.next_in_bin,
+                    self.rmax,
+                    self.exposed,
+                    slices,
+                ],
+                outputs=[tri_n, tri, self.diag],
                 device=d,
             )
         if self._capacity > 0:
@@ -731,6 +779,8 @@ class WettedSurface:
                 self.exposed,
                 self._bits,
                 self._capacity,
+                tri_n,
+                tri,
             ],
             outputs=[self.fluid, self.diag, self.queue, self.queued],
             device=d,
@@ -751,6 +801,8 @@ class WettedSurface:
                     self.exposed,
                     self.queue,
                     self.queued,
+                    tri_n,
+                    tri,
                 ],
                 outputs=[self.fluid, self.diag],
                 device=d,
@@ -760,7 +812,7 @@ class WettedSurface:
         per_word = 32 // self._bits
         first = wp.vec3i(0, self._face_words[0] * per_word, (self._face_words[0] + self._face_words[1]) * per_word)
         wp.launch(
-            K.wet_cross,
+            KC.wet_cross,
             dim=sum(self._face_words) * per_word,
             inputs=[
                 positions,
@@ -794,6 +846,8 @@ class WettedSurface:
                 self.next_in_bin,
                 self.rmax,
                 self.exposed,
+                tri_n,
+                tri,
             ],
             outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
             device=d,
@@ -837,18 +891,19 @@ class WettedSurface:
             band=unpack_bits(self.band.numpy(), self.shape),
             crossings=crossings,
             loaded=loaded,
-            invalid=int(diag[K.DIAG_INVALID]),
-            outside=int(diag[K.DIAG_OUTSIDE]),
-            tight=int(diag[K.DIAG_TIGHT]),
-            unattributed=int(diag[K.DIAG_UNATTRIBUTED]),
-            uncertain=int(diag[K.DIAG_UNCERTAIN]),
-            rescued=int(diag[K.DIAG_RESCUED]),
-            thin=int(diag[K.DIAG_THIN]),
-            gap_tests=int(diag[K.DIAG_GAPS]),
-            rounds=int(diag[K.DIAG_ROUNDS]),
-            nonconverged=bool(diag[K.DIAG_NONCONVERGED]),
+            invalid=int(diag[KB.DIAG_INVALID]),
+            outside=int(diag[KB.DIAG_OUTSIDE]),
+            tight=int(diag[KB.DIAG_TIGHT]),
+            unattributed=int(diag[KB.DIAG_UNATTRIBUTED]),
+            uncertain=int(diag[KB.DIAG_UNCERTAIN]),
+            rescued=int(diag[KB.DIAG_RESCUED]),
+            thin=int(diag[KB.DIAG_THIN]),
+            gap_tests=int(diag[KB.DIAG_GAPS]),
+            rounds=int(diag[KB.DIAG_ROUNDS]),
+            nonconverged=bool(diag[KB.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
+            triple_overflow=int(diag[KB.DIAG_TRI_OVERFLOW]),
         )
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
@@ -861,9 +916,9 @@ class WettedSurface:
                     block = src[start : start + self._faces[a]].reshape(nv, nu, self.shape[a] + 1)
                     dst[a] = block.transpose(1, 0, 2).copy()
                 start += self._faces[a]
-                walled = out.owners[a] <= K.WALL_OWNER
-                out.wall_owners[a] = np.where(walled, K.WALL_OWNER - out.owners[a], -1)
-                out.owners[a][walled] = K.WALL_OWNER
+                walled = out.owners[a] <= KB.WALL_OWNER
+                out.wall_owners[a] = np.where(walled, KB.WALL_OWNER - out.owners[a], -1)
+                out.owners[a][walled] = KB.WALL_OWNER
         if pressure is not None:
             out.force = (counts * pressure_area(pressure, g)).sum(axis=0)
             out.wall_forces = out.wall_counts * pressure_area(pressure, g)

@@ -105,8 +105,8 @@ BUGS = [
         "bvh_corner_sign",
         "non-cubic cells (memo-form grids, the BVH peer; a mutation-run survivor)",
         "warp_lamp/kernels/peers.py",
-        "dv = v - (p[(a + 2) % 3] - grid.corner_v[a])",
-        "dv = v - (p[(a + 2) % 3] + grid.corner_v[a])",
+        "dv = v - (p[(a + 2) % 3] - corner_v)",
+        "dv = v - (p[(a + 2) % 3] + corner_v)",
         ANISO,
     ),
     Bug(

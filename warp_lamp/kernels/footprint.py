@@ -71,7 +71,8 @@ def lamp_reach(rem: wp.float32, du: wp.float32, ray: wp.int32) -> wp.float32:
     """Half-length of the sphere along a lit cell's ray, or 0 for ``RAY_OVERLAP`` (depth at the centre).
 
     ``rem = r^2 - dv^2`` of the cell's row; the cell is lit when ``du^2 <= rem``. Every kernel that decides a
-    cell (depth pass, seeding, BVH peer) goes through this and ``cell_offset``, so their float32 roundings agree.
+    cell (depth pass, seeding) goes through this and ``cell_offset``, so their float32 roundings agree (the BVH
+    peer writes the same arithmetic out on its own).
     """
     if ray != RAY_OVERLAP:
         return wp.sqrt(rem - du * du)

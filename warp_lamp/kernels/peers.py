@@ -1,10 +1,10 @@
-"""Kernels of the benchmark's peers and ceilings: a Warp BVH ray caster, and device probes."""
+"""Kernels of the benchmark's peers and ceilings: a Warp BVH ray caster, and device probes.
+
+The caster imports nothing from the lamp's kernels (keys, grid parameters, footprints, cell numbering): it is a
+second implementation of criterion 1 that shares only the float32 arithmetic of the decision, which its kernel
+states."""
 
 import warp as wp
-
-from warp_lamp.kernels.footprint import lamp_reach
-from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
-from warp_lamp.kernels.keys import EMPTY_KEY, pack_key
 
 wp.set_module_options({"enable_backward": False, "fuse_fp": False})
 
@@ -29,64 +29,90 @@ def bvh_sphere_bounds(
 
 @wp.kernel
 def bvh_cast(
-    grid: LampGridParams,
     bvh: wp.uint64,
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
-    start_lo: wp.vec3,
-    start_hi: wp.vec3,
+    a: wp.int32,
+    n_u: wp.int32,
+    corner_u: wp.float32,
+    corner_v: wp.float32,
+    h_u: wp.float32,
+    h_v: wp.float32,
+    start_lo: wp.float32,
+    start_hi: wp.float32,
     # outputs
-    keys: wp.array[wp.uint64],
+    owner: wp.array2d[wp.int32],
+    depth: wp.array2d[wp.float32],
 ):
-    """One thread per cell ray per lamp (criterion 1): nearest sphere along the ray, shrinking max_dist.
+    """One thread per (ray, side) of the lamps along axis ``a`` (criterion 1): the nearest sphere along the ray
+    through the centre of cell (i, j), ray t = j n_u + i, from the low side (0, along +a) or the high side (1,
+    along -a); ``owner`` -1 where the ray meets nothing. Ties in depth go to the lower index.
 
-    The hit test works in the grid's transverse coordinates, exactly as the lamp does: the textbook
+    Positions are in the grid's frame (minus its origin: no rotation here). The hit test works in the grid's
+    transverse coordinates, in the float32 order of operations that defines criterion 1's decision (``du`` from the
+    cell centre ``(i + 1/2) h_u`` and the centre's offset from the grid corner, ``rem = r^2 - dv^2``, lit when
+    ``du^2 <= rem``), so that owners compare bitwise with the lamp's even on a silhouette; the textbook
     |oc|^2 - (oc.d)^2 cancels catastrophically in float32 when the ray starts far from the body.
     """
-    t = wp.tid()
-    c = t / 2
-    side = t - 2 * c
-    cell = grid_cell(grid, c)
-    a = cell[0]
-    u = (float(cell[1]) + 0.5) * grid.h_u[a]
-    v = (float(cell[2]) + 0.5) * grid.h_v[a]
+    t, side = wp.tid()
+    j = t / n_u
+    i = t - j * n_u
+    u = (float(i) + 0.5) * h_u
+    v = (float(j) + 0.5) * h_v
     start = wp.vec3(0.0)
     d = wp.vec3(0.0)
     if side == 0:
-        start[a] = start_lo[a]
+        start[a] = start_lo
         d[a] = 1.0
     else:
-        start[a] = start_hi[a]
+        start[a] = start_hi
         d[a] = -1.0
-    start[(a + 1) % 3] = u + grid.corner_u[a]
-    start[(a + 2) % 3] = v + grid.corner_v[a]
-    best = EMPTY_KEY
+    start[(a + 1) % 3] = u + corner_u
+    start[(a + 2) % 3] = v + corner_v
+    best = int(-1)
+    best_depth = float(0.0)
     max_dist = float(1.0e30)
     q = wp.bvh_query_ray(bvh, start, d)
     k = int(0)
     while wp.bvh_query_next(q, k, max_dist):
-        p = grid_to_frame(grid, positions[k])
+        p = positions[k]
         r = radii[k]
-        du = u - (p[(a + 1) % 3] - grid.corner_u[a])
-        dv = v - (p[(a + 2) % 3] - grid.corner_v[a])
+        du = u - (p[(a + 1) % 3] - corner_u)
+        dv = v - (p[(a + 2) % 3] - corner_v)
         rem = r * r - dv * dv
         du2 = du * du
-        # The lamp's own test and depth, written the same way, so that owners compare bitwise.
         if rem >= 0.0 and du2 <= rem:
-            s = lamp_reach(rem, du, 1)
-            key = EMPTY_KEY
-            dist = float(0.0)
-            if side == 0:
-                key = pack_key(p[a] - s, k)
-                dist = p[a] - s - start[a]
-            else:
-                key = pack_key(-(p[a] + s), k)
-                dist = start[a] - (p[a] + s)
-            if key < best:
-                best = key
+            half = wp.sqrt(rem - du2)
+            # The coordinate the ray enters at (low side) or, negated, leaves at (high side): smaller is nearer.
+            z = p[a] - half
+            dist = z - start[a]
+            if side == 1:
+                z = -(p[a] + half)
+                dist = start[a] - (p[a] + half)
+            if best < 0 or z < best_depth or (z == best_depth and k < best):
+                best = k
+                best_depth = z
                 # Boxes whose entry lies past the best hit cannot win; the margin keeps exact ties in play.
                 max_dist = dist * 1.000001 + 1.0e-6
-    keys[t] = best
+    owner[t, side] = best
+    depth[t, side] = best_depth
+
+
+@wp.kernel
+def bvh_scatter(
+    owner: wp.array2d[wp.int32],
+    a: wp.int32,
+    # outputs
+    counts: wp.array[wp.int64],
+):
+    """Each lit ray of axis ``a`` adds +1 (low side) or -1 (high side) to its owner's count on that axis."""
+    t = wp.tid()
+    low = owner[t, 0]
+    high = owner[t, 1]
+    if low >= 0:
+        wp.atomic_add(counts, 3 * low + a, wp.int64(1))
+    if high >= 0:
+        wp.atomic_add(counts, 3 * high + a, wp.int64(-1))
 
 
 @wp.kernel

@@ -1,0 +1,99 @@
+"""Count the exact test's work per tested voxel (the reference's candidate sets, which the kernels' equal after
+pruning at most): faces, pairs, gated pairs, triples tried, vertex points within rho, and how many distinct
+triples the whole update tries. Issue 32's prediction: the work of deciding triples per voxel against once per
+update.
+
+    PYTHONPATH=$PWD python bench/experiments/wetted_work_count.py --scene specimen --rho-diameters 0.5
+"""
+
+import argparse
+import time
+
+import numpy as np
+
+import warp_lamp as wl
+from warp_lamp.reference import wetted as R
+from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
+
+STATS = {"voxels": 0, "ids": 0, "pairs": 0, "edge_pts": 0, "gated_pairs": 0, "triples": 0, "vertex_pts": 0}
+TRIPLES = set()
+PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
+VALID_TRIPLES = set()
+PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
+
+
+def fluid(self, x, lattice):
+    rho = self.rho
+    rho2 = rho * rho
+    near = self._near(x, self.rmax + 2.0 * rho + self.diag)
+    v = x - self.c[near]
+    d2 = R._dot(v, v)
+    g = (self.r[near] + 2.0 * rho) * (1.0 + R.SLACK)
+    keep = self.exposed[near] & (d2 <= g * g)
+    ids = near[keep]
+    c, big = self.c[ids], self.big[ids]
+    STATS["voxels"] += 1
+    STATS["ids"] += len(ids)
+    pa, pb = np.triu_indices(len(ids), 1)
+    STATS["pairs"] += len(pa)
+    z, ok = R._circle_points(x, c[pa], big[pa], c[pb], big[pb])
+    e2 = R._dot(x - z, x - z)
+    STATS["edge_pts"] += int((ok & (e2 <= rho2)).sum())
+    gated = np.flatnonzero(ok & (e2 <= rho2 * (1.0 + R.SLACK)))
+    STATS["gated_pairs"] += len(gated)
+    per = len(ids) - pb[gated] - 1
+    STATS["triples"] += int(per.sum())
+    ta, tb = np.repeat(pa[gated], per), np.repeat(pb[gated], per)
+    start = np.repeat(np.cumsum(per) - per, per)
+    tk = np.arange(int(per.sum())) - start + tb + 1
+    z1, z2, okv = R._vertex_points(c[ta], big[ta], c[tb], big[tb], c[tk], big[tk])
+    for q in range(len(ta)):
+        if okv[q]:
+            TRIPLES.add((int(ids[ta[q]]), int(ids[tb[q]]), int(ids[tk[q]])))
+    w1 = R._dot(x - z1, x - z1) <= rho2
+    w2 = R._dot(x - z2, x - z2) <= rho2
+    STATS["vertex_pts"] += int((okv & w1).sum() + (okv & w2).sum())
+    PER_TEST.append(
+        (len(ids), len(pa), int(per.sum()), int((ok & (e2 <= rho2)).sum()), int((okv & w1).sum() + (okv & w2).sum()))
+    )
+    return ORIG(self, x, lattice)
+
+
+ORIG = R._Exact.fluid
+R._Exact.fluid = fluid
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", default="specimen")
+    ap.add_argument("--rho-diameters", type=float, default=0.5)
+    a = ap.parse_args()
+    sc = {
+        "specimen": scene_sphere_specimen,
+        "slot": scene_slot_block,
+        "small": lambda: scene_lattice_box(12),
+    }[a.scene]()
+    rho = a.rho_diameters * 2.0 * float(sc.radii.mean())
+    grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=2.0 * float(sc.radii.mean()) + rho)
+    t = time.perf_counter()
+    R.wetted_reference(sc.centers, sc.radii, grid, probe_radius=rho)
+    print(
+        f"{a.scene} rho={rho:.4g} n={sc.n} voxels={int(np.prod(grid.counts[2]) * grid.counts[0, 1])}"
+        f" {time.perf_counter() - t:.1f} s"
+    )
+    v = max(STATS["voxels"], 1)
+    for k, val in STATS.items():
+        print(f"  {k:12s} {val:>12,}  per tested voxel {val / v:8.2f}")
+    print(f"  distinct triples with points: {len(TRIPLES):,}")
+    # The GPU runs every test at once, so its time follows the slowest tests: the tail of the work per test.
+    a = np.array(PER_TEST, dtype=np.int64).reshape(-1, 5)
+    for k, name in enumerate(("spheres", "pairs", "triples tried", "edge points", "vertex points")):
+        q = np.percentile(a[:, k], [50, 90, 99, 99.9, 100])
+        print(
+            f"  per test {name:14s} median {q[0]:6.0f}  p90 {q[1]:6.0f}  p99 {q[2]:6.0f}  p99.9 {q[3]:6.0f}"
+            f"  max {q[4]:6.0f}"
+        )
+
+
+if __name__ == "__main__":
+    main()
