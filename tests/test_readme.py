@@ -50,7 +50,7 @@ BLOCKS = readme_blocks()
 
 def test_the_readme_has_python_blocks_and_every_fragment_says_why():
     """The blocks are found (the fence pattern is not stale) and a fragment mark gives its reason."""
-    assert sum(b[0].startswith("README.md:") for b in BLOCKS) >= 3
+    assert sum(b[0].startswith("README.md:") for b in BLOCKS) >= 1  # the quick start
     assert sum(b[0].startswith("docs/") for b in BLOCKS) >= 5
     for line, code, why in BLOCKS:
         compile(code, line, "exec")  # fragments too: at least they parse

@@ -112,7 +112,7 @@ TEST_MAP = {
     "warp_lamp/wetted.py": [*_WETTED, *_LAMP],
     "warp_lamp/porosity.py": _POROSITY,
     "warp_lamp/distributed.py": [*_DIST, *_LAMP_CORE],
-    "warp_lamp/peers.py": ["tests/test_peers.py", "tests/test_porosity.py", *_LAMP],
+    "warp_lamp/bench/peers.py": ["tests/test_peers.py", "tests/test_porosity.py", *_LAMP],
     "warp_lamp/measures.py": [*_MEASURES, *_LAMP, "tests/test_engines.py", "tests/test_tolerance.py"],
     "warp_lamp/scenes.py": ["tests/test_scenes.py", *_LAMP, *_POROSITY, *_MEASURES],
     "warp_lamp/tolerance.py": ["tests/test_tolerance.py", "tests/test_lamp.py", "tests/test_cli.py"],
