@@ -1,4 +1,4 @@
-"""The benchmark's area section alone (``warp_lamp.bench_modes.section_area``) on one device: JSON and Markdown.
+"""The benchmark's area section alone (``warp_lamp.bench.modes.section_area``) on one device: JSON and Markdown.
 
     PYTHONPATH=. python bench/run_area_section.py --device cpu --json bench/results/cpu-dev-2026-11-25-area.json
     PYTHONPATH=. python bench/run_area_section.py --device cuda:0 --large --json $OUT/area.json   # the GPU part
@@ -16,7 +16,7 @@ import time
 
 import warp as wp
 
-from warp_lamp.bench_modes import format_modes, section_area
+from warp_lamp.bench.modes import format_modes, section_area
 
 
 def main():

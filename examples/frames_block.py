@@ -6,7 +6,7 @@ each face particle's force and the face's inward normal (the README's table), an
     python examples/frames_block.py                     # the two rows, at 4 cells per diameter
     pip install ".[plot]" && python examples/frames_block.py --out docs/frames_block.png
 
-The experiment is :func:`warp_lamp.bench_modes.frames_block_case`, the benchmark's own, so that the picture and
+The experiment is :func:`warp_lamp.bench.modes.frames_block_case`, the benchmark's own, so that the picture and
 the table are one experiment with one number.
 """
 
@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import warp as wp
 
-from warp_lamp.bench_modes import BLOCK_ROTATION_DEG, frames_block_case
+from warp_lamp.bench.modes import BLOCK_ROTATION_DEG, frames_block_case
 
 N = 20  # spheres per block edge
 CASES = {"axis-aligned lamp": False, "lamp turned with the block": True}

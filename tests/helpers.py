@@ -103,7 +103,7 @@ def device_arrays(centers, radii, device):
 def bvh_owners(grid, centers, radii, device):
     """The BVH ray caster's owners per lamp (one ray per cell, no footprint: an independent algorithm) for world
     centres [m], shape (N, 3), and radii [m]; returns (owners by lamp name, the caster)."""
-    from warp_lamp.peers import BvhLamp
+    from warp_lamp.bench.peers import BvhLamp
 
     peer = BvhLamp(grid, len(radii), device=device)
     local = grid.to_frame(centers).astype(np.float32)

@@ -13,9 +13,9 @@ import pytest
 import warp as wp
 
 import warp_lamp as wl
-from warp_lamp import bench_modes as bm
-from warp_lamp import bench_porosity as bp
 from warp_lamp import cli
+from warp_lamp.bench import modes as bm
+from warp_lamp.bench import porosity as bp
 from warp_lamp.reference import visible_area_reference
 from warp_lamp.scenes import (
     Scene,

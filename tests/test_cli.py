@@ -57,12 +57,12 @@ def no_work(monkeypatch):
         raise AssertionError("the work started before the arguments were checked")
 
     import warp_lamp.bench
-    import warp_lamp.bench_porosity
+    import warp_lamp.bench.porosity
     import warp_lamp.scenes
 
     monkeypatch.setattr(warp_lamp.scenes, "scene_sphere_specimen", refuse)
     monkeypatch.setattr(warp_lamp.bench, "bench_lamp", refuse)
-    monkeypatch.setattr(warp_lamp.bench_porosity, "bench_porosity", refuse)
+    monkeypatch.setattr(warp_lamp.bench.porosity, "bench_porosity", refuse)
 
 
 @pytest.mark.parametrize(

@@ -372,7 +372,7 @@ def test_share_bench_on_the_stand_in_and_its_engines_row(tmp_path):
     SphereTest and a share row per size and mode; `bench engines` reads and prints that file's numbers."""
     import importlib.util
 
-    from warp_lamp import bench_engines
+    from warp_lamp.bench import engines as bench_engines
 
     spec = importlib.util.spec_from_file_location("deme_share", deme_module.__file__.rsplit("/warp_lamp/", 1)[0]
                                                   + "/bench/deme_share.py")  # fmt: skip

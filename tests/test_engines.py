@@ -371,7 +371,7 @@ def test_yade_contacts_sign_and_ids_on_a_stand_in(fake_yade):
 def test_yade_alpha_caps_balance_and_point_inward(yade):
     """YADE's alpha caps (the bench's peer) on a small ball: they balance, load only outer particles, push inward,
     and alpha <= 0 is refused before YADE runs (it crashes YADE's CGAL)."""
-    from warp_lamp.bench_engines import alpha_for_probe, yade_alpha_caps
+    from warp_lamp.bench.engines import alpha_for_probe, yade_alpha_caps
 
     s = scene_lattice_ball(0.05, 0.005)
     r = float(s.radii.mean())
@@ -495,7 +495,7 @@ def test_lammps_lamp_bad_input(lmp):
 
 def test_bench_engines_skips_without_yade(monkeypatch):
     """Where YADE is missing the peer row says so instead of failing, and the table prints the reason."""
-    from warp_lamp import bench_engines
+    from warp_lamp.bench import engines as bench_engines
 
     monkeypatch.delenv("WARP_LAMP_YADE", raising=False)
     monkeypatch.setattr(bench_engines.shutil, "which", lambda name: None)
@@ -513,7 +513,7 @@ def test_bench_engines_skips_without_yade(monkeypatch):
 def test_alpha_for_probe_is_the_power_distance():
     """alpha_for_probe gives the power distance of a probe ball touching a sphere: |c - p|^2 - r^2 at
     |c - p| = rho + r, for the alpha shape's weighted points (weight r^2)."""
-    from warp_lamp.bench_engines import alpha_for_probe
+    from warp_lamp.bench.engines import alpha_for_probe
 
     for rho, r in ((0.45, 0.45), (0.9, 0.45), (0.005, 0.0025)):
         assert np.isclose(alpha_for_probe(rho, r), (rho + r) ** 2 - r**2, rtol=1e-15)

@@ -22,7 +22,7 @@ def test_bench_plot_names_only_the_line_styles_it_draws():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from warp_lamp.bench_modes import plot_area
+    from warp_lamp.bench.modes import plot_area
 
     result = json.loads((RESULTS / "h200-2026-11-25.json").read_text())
     fig, ax = plt.subplots()

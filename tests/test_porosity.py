@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import warp_lamp as wl
-from warp_lamp.peers import overlap_hexahedron
+from warp_lamp.bench.peers import overlap_hexahedron
 from warp_lamp.porosity import kozeny_carman, midpoint_choice, porosity
 from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets, porosity_reference
 

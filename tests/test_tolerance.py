@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import warp_lamp as wl
-from warp_lamp.bench_modes import P, exact_areas
+from warp_lamp.bench.modes import P, exact_areas
 from warp_lamp.measures import visible_area_error
 from warp_lamp.scenes import scene_lattice_ball
 from warp_lamp.tolerance import choose_settings, load_table

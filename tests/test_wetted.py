@@ -7,7 +7,7 @@ from helpers import DEVICES
 from wetted_brute import brute_counts, brute_fluid
 
 import warp_lamp as wl
-from warp_lamp.bench_wetted import lone_sphere_convergence
+from warp_lamp.bench.wetted import lone_sphere_convergence
 from warp_lamp.kernels.walls import LampWalls
 from warp_lamp.lamp import pressure_area
 from warp_lamp.reference.wetted import dilation_table as reference_table

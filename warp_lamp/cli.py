@@ -1238,7 +1238,7 @@ def _bench(args) -> int:
 
 
 def _bench_tolerance(args) -> int:
-    from warp_lamp.bench_tolerance import check_tolerance
+    from warp_lamp.bench.tolerance import check_tolerance
     from warp_lamp.tolerance import load_table
 
     text = sys.stderr if args.json == "-" else sys.stdout
@@ -1272,7 +1272,7 @@ def _bench_tolerance(args) -> int:
 
 
 def _bench_engines(args) -> int:
-    from warp_lamp.bench_engines import bench_engines, format_engines
+    from warp_lamp.bench.engines import bench_engines, format_engines
 
     text = sys.stderr if args.json == "-" else sys.stdout
     result = bench_engines(repeats=args.repeats or 3, sweep=args.sweep, progress=not args.no_progress)
@@ -1283,7 +1283,7 @@ def _bench_engines(args) -> int:
 
 
 def _bench_porosity(args) -> int:
-    from warp_lamp import bench_porosity as bp
+    from warp_lamp.bench import porosity as bp
 
     text = sys.stderr if args.json == "-" else sys.stdout
     if args.from_json:

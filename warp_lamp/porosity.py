@@ -291,7 +291,7 @@ def porosity(
             bounding cube, whose overlap with each cell is counted.
         ``"exact"`` (sum): the exact volume of each sphere inside each cell (closed form, float64), summed over
             spheres, so overlapping spheres count twice, as CFD-DEM codes do.
-        ``"voxel"`` (union): each cell is cut into ``subdivisions``^3 sub-cells; a sub-cell is solid when its
+        ``"voxel"`` (union): each cell is cut into ``subdivisions**3`` sub-cells; a sub-cell is solid when its
             true centre lies in any sphere (no rounding of centres or radii), and is counted once. Exact in the
             limit for any cell shape; sub-cells may be stretched.
         ``"midpoint"`` (union): the paper's own algorithm on the same sub-grid: sphere centres go to the sub-cell

@@ -390,7 +390,7 @@ def scene_overlapping_polydisperse(
     solid_fraction: float = 0.6,
     seed: int = 0,
 ) -> Scene:
-    """A ball of strongly overlapping polydisperse spheres, as in bonded or cemented DEM packings (issue 19).
+    """A ball of strongly overlapping polydisperse spheres, as in bonded or cemented DEM packings.
 
     ``n`` radii uniform in [Rmin, ``ratio`` Rmin] with mean ``mean_radius``, placed one by one, largest first
     (random sequential addition), at uniform random points of a ball sized so that the summed sphere volume is

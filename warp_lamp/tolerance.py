@@ -8,8 +8,8 @@ time on each device kind measured.
 The rule (:func:`choose_settings`):
 
 1. the error of a setting is the largest, over the table's scenes (a dense random packing and two lattice balls,
-   ``bench_tolerance.table_scenes``), of the RMS per-particle force error against the exact visible areas, over
-   the surface particles, relative to P pi rbar^2 (``measures.visible_area_error``);
+   ``warp_lamp.bench.tolerance.table_scenes``), of the RMS per-particle force error against the exact visible
+   areas, over the surface particles, relative to P pi rbar^2 (``measures.visible_area_error``);
 2. the settings whose error times :data:`MARGIN` (1.2) is at most ``tolerance`` are eligible: a packing the table
    never saw has its own error, and on five lattice balls of other seeds (25 setting-scene pairs) the largest
    ratio of their error to the table's was 1.10;
@@ -20,7 +20,7 @@ The rule (:func:`choose_settings`):
 What it does not promise: the error is the table scenes' (dense random packings and a lattice ball of 1.66
 radius ratio, the surface particles of a convex body); a body with much finer features than its mean particle,
 strongly overlapping spheres or extreme radius ratios may need a smaller tolerance. The benchmark checks the
-choice on a scene held out of the table (``bench_tolerance.check_tolerance``). The wetted surface
+choice on a scene held out of the table (``warp_lamp.bench.tolerance.check_tolerance``). The wetted surface
 (``surfaces="all"``) models another surface and is not chosen by ``tolerance``.
 """
 

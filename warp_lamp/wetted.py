@@ -1,4 +1,4 @@
-"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid (issues 10 and 19).
+"""Every wetted surface loaded: a rolling-probe fluid region on the lamp's voxel grid.
 
 The lamp loads only what each lamp sees first (the memo's limitation 1) and its rays reach deep particles
 through the channels between spheres (limitation 2). This mode loads the boundary of a fluid region instead:
@@ -27,7 +27,7 @@ through the channels between spheres (limitation 2). This mode loads the boundar
   ``|p - c_i| - r_i`` in float64, ties to the lowest index (never farther than :func:`attribution_bound`); a thin
   interval's entry to the sphere whose chord starts it, its exit to the one whose chord reaches furthest.
 
-- **Walls** (issue 19, part 2; planes with the fluid where ``g = n . x - d > 0``): the probe centre keeps
+- **Walls** (planes with the fluid where ``g = n . x - d > 0``): the probe centre keeps
   ``g >= rho`` from every wall, a voxel centre with ``g < 0`` is solid, beyond the box only the points that keep rho
   from every wall are reached and only those within rho of them are fluid (the walls' own fluid: ``g >= 0`` for one
   wall). The offset planes are more candidates of the exact test. A crossing goes to the nearest wall that cuts its axis

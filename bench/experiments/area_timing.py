@@ -3,7 +3,7 @@
     PYTHONPATH=. python bench/experiments/area_timing.py --cpd 4 --repeats 7
     PYTHONPATH=/tmp/a7331c6 python bench/experiments/area_timing.py   # the original code, same machine
 
-Median of ``repeats`` eager updates (``warp_lamp.bench_modes.time_update``, no moving body), per resolver and D;
+Median of ``repeats`` eager updates (``warp_lamp.bench.modes.time_update``, no moving body), per resolver and D;
 also the overlapping polydisperse ball when ``--overlap`` names its npz (area_overlap.py --save-scene).
 """
 
@@ -15,7 +15,7 @@ import json
 import numpy as np
 
 from warp_lamp import LampGrid, ShiningLamp
-from warp_lamp.bench_modes import time_update
+from warp_lamp.bench.modes import time_update
 from warp_lamp.scenes import Scene, scene_sphere_specimen
 
 

@@ -147,7 +147,7 @@ def _drive_packing():
 
 
 def _drive_porosity():
-    from warp_lamp.bench_porosity import table_1
+    from warp_lamp.bench.porosity import table_1
     from warp_lamp.porosity import porosity
 
     out = {}

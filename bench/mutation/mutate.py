@@ -11,7 +11,7 @@ each mutant into the source file before it runs the tests. Warp compiles every m
 its own cache (/tmp/warp_lamp_mutation/warpcache).
 
 The sample: cosmic-ray's mutants of the scope's files (``SCOPES``: ``all`` is warp_lamp/ and examples/, ``lib`` is
-warp_lamp/ less bench*.py, cli.py and the functions that draw figures), restricted to the operators in
+warp_lamp/ less warp_lamp/bench/, cli.py and the functions that draw figures), restricted to the operators in
 ``OPERATORS`` (the classic set: + <-> -, * <-> /, the comparison boundaries and negations, bit operators swapped,
 unary minus and ``not`` removed, numbers +-1, True <-> False, and <-> or, loops run zero times, break <-> continue),
 each kept when a hash of (file, operator, the stripped source line, the how-many-th such mutant of that line) falls
@@ -77,11 +77,11 @@ TEST_COMMAND = "bash -c 'rm -rf .hypothesis && exec python -m pytest -x -q -p no
 #: The files each scope mutates: cosmic-ray's ``module-path`` and ``excluded-modules`` (globs), and whether the
 #: functions that draw figures are left out (``_drawing_lines``). ``all`` is the rule of the runs before issue 21;
 #: ``lib`` is issue 21's: the library less its benchmark sections, its command line and its plots. Every plot in
-#: warp_lamp/ is in a bench*.py (``bench.plot``, ``bench_modes.plot_area``, ``bench_porosity.plot_histograms``) and
+#: warp_lamp/ is in warp_lamp/bench/ (``speed.plot``, ``modes.plot_area``, ``porosity.plot_histograms``) and
 #: examples/ is outside warp_lamp/, so today the drawing filter removes nothing; it keeps a future plot out.
 SCOPES = {
     "all": {"paths": ["warp_lamp", "examples"], "excluded": [], "drawing": False},
-    "lib": {"paths": ["warp_lamp"], "excluded": ["warp_lamp/bench*.py", "warp_lamp/cli.py"], "drawing": True},
+    "lib": {"paths": ["warp_lamp"], "excluded": ["warp_lamp/bench/*.py", "warp_lamp/cli.py"], "drawing": True},
 }
 
 _LAMP_CORE = [
@@ -112,7 +112,7 @@ TEST_MAP = {
     "warp_lamp/wetted.py": [*_WETTED, *_LAMP],
     "warp_lamp/porosity.py": _POROSITY,
     "warp_lamp/distributed.py": [*_DIST, *_LAMP_CORE],
-    "warp_lamp/peers.py": ["tests/test_peers.py", "tests/test_porosity.py", *_LAMP],
+    "warp_lamp/bench/peers.py": ["tests/test_peers.py", "tests/test_porosity.py", *_LAMP],
     "warp_lamp/measures.py": [*_MEASURES, *_LAMP, "tests/test_engines.py", "tests/test_tolerance.py"],
     "warp_lamp/scenes.py": ["tests/test_scenes.py", *_LAMP, *_POROSITY, *_MEASURES],
     "warp_lamp/tolerance.py": ["tests/test_tolerance.py", "tests/test_lamp.py", "tests/test_cli.py"],

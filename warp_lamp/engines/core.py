@@ -45,17 +45,19 @@ class EngineLamp:
         device="cpu",
         **lamp_options,
     ):
-        """Args:
-        centers: Particle centres [m], shape (N, 3), N >= 1: where the grid is fitted.
-        radii: Particle radii [m], shape (N,).
-        pressure: Fluid pressure [Pa], as :meth:`ShiningLamp.add_forces` takes it on the host.
-        grid: Lamp grids; by default :meth:`LampGrid.enclosing` around ``centers`` with ``cells_per_diameter``
-            (its margin grown by ``probe_radius`` with ``surfaces="all"``).
-        cells_per_diameter: Cells per mean particle diameter of the default grid.
-        follow: Move the grid with the body by whole cells (:class:`ShiningLamp`'s ``follow``).
-        device: Warp device the lamp runs on ("cpu" by default: the engine's arrays live on the host).
-        **lamp_options: Further keywords of :class:`ShiningLamp` (``criterion``, ``lamps``, ``surfaces``,
-            ``probe_radius``, ``frames``, ...).
+        """Set up the adapter.
+
+        Args:
+            centers: Particle centres [m], shape (N, 3), N >= 1: where the grid is fitted.
+            radii: Particle radii [m], shape (N,).
+            pressure: Fluid pressure [Pa], as :meth:`ShiningLamp.add_forces` takes it on the host.
+            grid: Lamp grids; by default :meth:`LampGrid.enclosing` around ``centers`` with ``cells_per_diameter``
+                (its margin grown by ``probe_radius`` with ``surfaces="all"``).
+            cells_per_diameter: Cells per mean particle diameter of the default grid.
+            follow: Move the grid with the body by whole cells (:class:`ShiningLamp`'s ``follow``).
+            device: Warp device the lamp runs on ("cpu" by default: the engine's arrays live on the host).
+            **lamp_options: Further keywords of :class:`ShiningLamp` (``criterion``, ``lamps``, ``surfaces``,
+                ``probe_radius``, ``frames``, ...).
         """
         c, r = check_particles(centers, radii)
         if len(r) == 0:

@@ -103,15 +103,17 @@ class LammpsLamp:
     """
 
     def __init__(self, lmp, pressure, *, every: int = 1, group: str = "all", fix_id: str = "warp_lamp", **lamp_options):
-        """Args:
-        lmp: A ``lammps.lammps`` instance with atoms (``atom_style sphere``: positions and radii).
-        pressure: Fluid pressure [Pa] (a number, three per-axis numbers or a stress tensor; see
-            :class:`~warp_lamp.engines.EngineLamp`); ``lamp.pressure = p`` changes it between calls.
-        every: Call the lamp every this many steps; its forces apply on every step.
-        group: The LAMMPS group the forces go to.
-        fix_id: Id of the ``fix external`` this adds.
-        **lamp_options: Keywords of :class:`~warp_lamp.engines.EngineLamp` (``cells_per_diameter``, ``grid``,
-            ``follow``, ``device``, ``criterion``, ``surfaces``, ``probe_radius``, ...).
+        """Set up the adapter.
+
+        Args:
+            lmp: A ``lammps.lammps`` instance with atoms (``atom_style sphere``: positions and radii).
+            pressure: Fluid pressure [Pa] (a number, three per-axis numbers or a stress tensor; see
+                :class:`~warp_lamp.engines.EngineLamp`); ``lamp.pressure = p`` changes it between calls.
+            every: Call the lamp every this many steps; its forces apply on every step.
+            group: The LAMMPS group the forces go to.
+            fix_id: Id of the ``fix external`` this adds.
+            **lamp_options: Keywords of :class:`~warp_lamp.engines.EngineLamp` (``cells_per_diameter``, ``grid``,
+                ``follow``, ``device``, ``criterion``, ``surfaces``, ``probe_radius``, ...).
         """
         if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
             raise ValueError(f"every: expected an integer >= 1, got {every!r}")

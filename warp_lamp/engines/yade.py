@@ -38,7 +38,7 @@ Traps a YADE user meets (each checked on 2023.02a):
 - ``PyRunner`` takes a command string that runs in those globals: keep the adapter in a global (``lamp``) and pass
   ``command="lamp()"``.
 - ``TesselationWrapper.applyAlphaForces`` (YADE's own pressure boundary) with its default alpha = 0 crashes in CGAL
-  (see :mod:`warp_lamp.bench_engines`).
+  (see :mod:`warp_lamp.bench.engines`).
 """
 
 from __future__ import annotations
@@ -71,29 +71,31 @@ def _sphere_ids(omega) -> list[int]:
 class YadeLamp:
     """Shining-lamp pressure on YADE's spheres, set as permanent forces; call it from a ``PyRunner``.
 
-        Each call reads the sphere centres (:meth:`positions`), runs an :class:`~warp_lamp.engines.EngineLamp` kept
-        between calls, and sets each changed force with ``O.forces.setPermF``. The force stays until the next call,
-        so ``PyRunner(command="lamp()", iterPeriod=N)`` refreshes the lamp every N iterations (the memo's
-        ``ct_pressrate``). The adapter owns the permanent forces of its spheres, and remembers what it wrote: a row is
+    Each call reads the sphere centres (:meth:`positions`), runs an :class:`~warp_lamp.engines.EngineLamp` kept
+    between calls, and sets each changed force with ``O.forces.setPermF``. The force stays until the next call,
+    so ``PyRunner(command="lamp()", iterPeriod=N)`` refreshes the lamp every N iterations (the memo's
+    ``ct_pressrate``). The adapter owns the permanent forces of its spheres, and remembers what it wrote: a row is
     written again only when the lamp's force on it changes, so after setting permanent forces on these spheres
     elsewhere, call :meth:`rewrite_all`.
 
-        Attributes:
-            ids: Body ids of the spheres the lamp sees, shape (N,).
-            core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
-            timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
-                ``read`` (positions), ``lamp`` (the lamp's own cost), ``write`` (setting the forces).
-            written: Rows written by the last call.
+    Attributes:
+        ids: Body ids of the spheres the lamp sees, shape (N,).
+        core: The :class:`~warp_lamp.engines.EngineLamp` (its ``lamp``, ``grid``, ``pressure``).
+        timings: Seconds of each call's parts (:class:`~warp_lamp.engines.CallTimings`, wall clock and CPU):
+            ``read`` (positions), ``lamp`` (the lamp's own cost), ``write`` (setting the forces).
+        written: Rows written by the last call.
     """
 
     def __init__(self, pressure, *, ids=None, omega=None, **lamp_options):
-        """Args:
-        pressure: Fluid pressure [Pa] (a number, three per-axis numbers or a stress tensor; see
-            :class:`~warp_lamp.engines.EngineLamp`); ``lamp.pressure = p`` changes it between calls.
-        ids: Body ids of the spheres under pressure; every body with a ``Sphere`` shape by default.
-        omega: YADE's ``O``; the running one by default.
-        **lamp_options: Keywords of :class:`~warp_lamp.engines.EngineLamp` (``cells_per_diameter``, ``grid``,
-            ``follow``, ``device``, ``criterion``, ``surfaces``, ``probe_radius``, ...).
+        """Set up the adapter.
+
+        Args:
+            pressure: Fluid pressure [Pa] (a number, three per-axis numbers or a stress tensor; see
+                :class:`~warp_lamp.engines.EngineLamp`); ``lamp.pressure = p`` changes it between calls.
+            ids: Body ids of the spheres under pressure; every body with a ``Sphere`` shape by default.
+            omega: YADE's ``O``; the running one by default.
+            **lamp_options: Keywords of :class:`~warp_lamp.engines.EngineLamp` (``cells_per_diameter``, ``grid``,
+                ``follow``, ``device``, ``criterion``, ``surfaces``, ``probe_radius``, ...).
         """
         self.O = yade_omega() if omega is None else omega
         ids = _sphere_ids(self.O) if ids is None else [int(i) for i in ids]

@@ -1,4 +1,4 @@
-"""YADE's own pressure boundary, alpha-shape caps, timed inside YADE: the job :mod:`warp_lamp.bench_engines` runs.
+"""YADE's own pressure boundary, alpha-shape caps, timed inside YADE: the job :mod:`warp_lamp.bench.engines` runs.
 
     yade -j1 -n -x warp_lamp/engines/yade_alpha_job.py IN.npz OUT.npz
 

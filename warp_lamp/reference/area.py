@@ -1,4 +1,4 @@
-"""Float64 NumPy references for the lamp's visible-area criterion (issue 15), written for clarity and robustness.
+"""Float64 NumPy references for the lamp's visible-area criterion, written for clarity and robustness.
 
 Two layers:
 
@@ -6,7 +6,7 @@ Two layers:
   is visible inside an axis-aligned rectangle (not covered by an earlier disk). Exact: Green's theorem,
   ``A = 1/2 \\oint (x dy - y dx)``, over circle arcs and rectangle edges in closed form.
 - :func:`visible_sphere_areas` and :func:`visible_area_reference`: the visible projected area of spheres, each
-  point to the sphere whose *surface* the ray meets first (issue 19: where spheres overlap, that is not the
+  point to the sphere whose *surface* the ray meets first (where spheres overlap, that is not the
   nearest centre): the planar core on the spheres ordered pair by pair for the rectangle, exact wherever the
   order holds on the whole rectangle, refined and rastered only where a projected intersection circle passes;
   :func:`visible_area_reference` tiles each lamp's plane and runs that per tile on the spheres that reach it.
@@ -1091,7 +1091,7 @@ def area_estimate_reference(
     _extra=None,
     _hidden_rounds=0,
 ) -> AreaEstimate:
-    """The lamp's visible-area estimator (issues 15, 19), as the reference its Warp kernel is tested against.
+    """The lamp's visible-area estimator, as the reference its Warp kernel is tested against.
 
     Every choice, in the order the estimator makes them (float32 where the kernels compute, so that the kernel
     can match unit for unit):

@@ -6,7 +6,7 @@ compare like with like), only the ``-x`` lamp on. The load is the x-force over `
 over the offsets, for ``surfaces="all"`` at each probe radius rho (in cells) and for criterion 1 (the first-surface
 lamp) on the same grids. Run it as a module for the table and a JSON file::
 
-    PYTHONPATH=$PWD python -m warp_lamp.bench_wetted --out bench/results/cpu-dev-2026-11-25-wetted-convergence.json
+    PYTHONPATH=$PWD python -m warp_lamp.bench.wetted --out bench/results/cpu-dev-2026-11-25-wetted-convergence.json
 """
 
 from __future__ import annotations

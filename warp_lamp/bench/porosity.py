@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import warp as wp
 
-from warp_lamp.peers import overlap_hexahedron
+from warp_lamp.bench.peers import overlap_hexahedron
 from warp_lamp.porosity import POROSITY_METHODS, count_bitmap, kozeny_carman, porosity, porosity_mark_union
 from warp_lamp.reference import PAPER_TABLE_1, midpoint_sphere_offsets
 from warp_lamp.scenes import scene_overlapping_box

@@ -5,9 +5,9 @@ exact visible areas) and times it on one device (graph replay on CUDA); ``merge_
 times to a table; ``check_tolerance`` asks for a range of tolerances and measures what each choice really gives,
 on the table's scenes and on a scene held out of the table.
 
-    python -m warp_lamp.bench_tolerance --device cpu --out table.json            # errors + CPU times
-    python -m warp_lamp.bench_tolerance --device cuda:0 --times-only --merge table.json --out table.json
-    python -m warp_lamp.bench_tolerance --check table.json --device cpu
+    python -m warp_lamp.bench.tolerance --device cpu --out table.json            # errors + CPU times
+    python -m warp_lamp.bench.tolerance --device cuda:0 --times-only --merge table.json --out table.json
+    python -m warp_lamp.bench.tolerance --check table.json --device cpu
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_lamp.bench_modes import P, exact_areas, time_update
+from warp_lamp.bench.modes import P, exact_areas, time_update
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import ShiningLamp
 from warp_lamp.measures import visible_area_error

@@ -7,6 +7,8 @@ import time
 import numpy as np
 import warp as wp
 
+from warp_lamp.bench.common import MISSING, lattice_grid, markdown_table
+from warp_lamp.bench.modes import bench_modes, format_modes, plot_area
 from warp_lamp.grid import LampGrid
 from warp_lamp.kernels import peers as peer_kernels
 from warp_lamp.lamp import ShiningLamp, lamp_update, pressure_area
@@ -17,8 +19,6 @@ from warp_lamp.timing import Progress, run_header, time_median, time_median_even
 __all__ = [
     "bench_lamp",
     "format_tables",
-    "lattice_grid",
-    "markdown_table",
     "place_labels",
     "plot",
     "specimen_stress",
@@ -89,13 +89,6 @@ def _expected_updates(radii, grid: LampGrid, criterion: int, lamp_count: int = 2
     return total
 
 
-def lattice_grid(scene: Scene, cell: float) -> LampGrid:
-    """The benchmark's box grid around a lattice scene: the spheres' bounding box plus one cell, cells of ``cell``."""
-    lo = scene.centers.min(axis=0) - scene.radii.max() - cell
-    hi = scene.centers.max(axis=0) + scene.radii.max() + cell
-    return LampGrid(lo, hi, cell)
-
-
 def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: int, **lamp_options) -> dict:
     """Cold update, warm eager update, graph replay and moving body (CUDA), and the update's steps, for one scene
     and grid. Positions go in frame coordinates (subtracted in float64), as :func:`lamp_forces` passes them.
@@ -157,7 +150,7 @@ def time_lamp(scene: Scene, grid: LampGrid, criterion: int, device, *, repeats: 
 
 def time_bvh(scene: Scene, grid: LampGrid, device, *, repeats: int) -> dict:
     """The Warp BVH ray caster on the same scene: build (boxes + BVH), and cast + scatter."""
-    from warp_lamp.peers import BvhLamp
+    from warp_lamp.bench.peers import BvhLamp
 
     pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
@@ -259,28 +252,12 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
                 )
                 bar.step(f"{device.alias} sweep c{criterion} d/{k}")
     bar.close()
-    from warp_lamp.bench_modes import bench_modes  # it imports this module
-
     result.update(bench_modes(devices, quick=quick, progress=progress, repeats=repeats))
     return result
 
 
-#: What a table prints where a device or a peer has no value.
-MISSING = "\u2013"
-
-
 def _ms(x):
     return MISSING if x is None else f"{x * 1e3:.3f}"
-
-
-def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    """Lines of a Markdown table; every row must have one cell per header column."""
-    for row in rows:
-        if len(row) != len(header):
-            raise ValueError(f"table row has {len(row)} cells for {len(header)} columns: {row}")
-    return ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)] + [
-        "| " + " | ".join(r) + " |" for r in rows
-    ]
 
 
 def format_tables(result: dict) -> str:
@@ -368,8 +345,6 @@ def format_tables(result: dict) -> str:
             for s in result["sweep"]
         ],
     )
-    from warp_lamp.bench_modes import format_modes
-
     lines.append(format_modes(result))
     return "\n".join(lines)
 
@@ -440,8 +415,6 @@ def plot(result: dict, path: str) -> None:
         ax.margins(x=0.12, y=0.08)
     axes[0, 0].set_ylabel("full update of all six lamps [ms]", fontsize=9)
     if area:
-        from warp_lamp.bench_modes import plot_area
-
         ax = axes[0, -1]
         labels[ax] = plot_area(ax, result)
         for axis in (ax.xaxis, ax.yaxis):

@@ -1,4 +1,4 @@
-"""``warp-lamp bench``'s peer row from an engine people use (issue 24): YADE's alpha-shape caps against the lamp's
+"""``warp-lamp bench``'s peer row from an engine people use: YADE's alpha-shape caps against the lamp's
 wetted surface.
 
 YADE's own pressure boundary is ``TesselationWrapper.applyAlphaForces(stress, alpha, shrinkedAlpha, fixedAlpha)``:
@@ -6,7 +6,7 @@ a regular (weighted) Delaunay triangulation of the spheres in CGAL, its alpha sh
 area vector of its Voronoi faces toward fictitious spheres placed on the alpha shape's facets, times the stress.
 Here it runs in YADE itself (:mod:`warp_lamp.engines.yade_alpha_job`, a subprocess: YADE has its own interpreter),
 against :class:`~warp_lamp.engines.EngineLamp` with ``surfaces="all"`` (probe radius rho = one mean radius, as
-``bench modes``' wetted section), both on the CPU, on issue 10's slot block and the SphereTest specimen.
+``bench modes``' wetted section), both on the CPU, on the slot block and the SphereTest specimen.
 
 The alpha choice. alpha is a squared radius in power distance: a probe ball of radius rho touching spheres of
 radius r has alpha = rho (rho + 2 r), so :func:`alpha_for_probe` converts a probe radius. The bench uses a probe of
@@ -18,7 +18,7 @@ alpha ball rounds the slot's bottom corners; at 8 r it bridges the slot (floor 0
 both sit within 1.5% of the lamp's. YADE's default alpha = 0 stops in CGAL ("Creating an Mpzf from infinity or
 NaN") on 2023.02a, and the job refuses it.
 
-    python -m warp_lamp.bench_engines [--sweep] [--repeats 3] [--json PATH]
+    python -m warp_lamp.bench.engines [--sweep] [--repeats 3] [--json PATH]
 
 DEM-Engine (DEME, a GPU engine) gets its own rows, :func:`deme_section`: the SphereTest held by the lamp inside
 DEME and the lamp's share of a DEME step, run by ``bench/deme_share.py`` where ``deme`` and a CUDA device are

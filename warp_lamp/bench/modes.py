@@ -27,7 +27,7 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_lamp.bench import lattice_grid, markdown_table
+from warp_lamp.bench.common import lattice_grid, markdown_table
 from warp_lamp.grid import LampGrid
 from warp_lamp.lamp import ShiningLamp
 from warp_lamp.measures import (
@@ -80,7 +80,7 @@ _EXACT: dict[str, tuple[np.ndarray, float]] = {}
 def exact_areas(scene: Scene) -> tuple[np.ndarray, float]:
     """The exact visible area of every particle from every lamp [m^2], shape (N, 6), and the seconds it took,
     cached in memory per scene (keyed by its centres and radii): about 20 s on the CPU for the specimen, by surface
-    depth (issue 19)."""
+    depth."""
     from warp_lamp.reference import visible_area_reference
 
     c = np.ascontiguousarray(scene.centers, dtype=np.float64)
@@ -300,7 +300,7 @@ def section_area(
         criterion1_cpd: Resolutions of criterion 1 [cells per mean diameter]; 4 is the reference of ``ratio``.
         area_cpd: Resolutions of the area criterion.
         estimators: ``(resolver, depth_slots)`` pairs of the area criterion (8 x 8 sub-points).
-        overlap: The overlapping body of issue 19, measured as the specimen at ``overlap_cpd`` (error only, not
+        overlap: The overlapping polydisperse ball, measured as the specimen at ``overlap_cpd`` (error only, not
             timed): a scene, True for :func:`~warp_lamp.scenes.scene_overlapping_polydisperse`, False for none.
         overlap_cpd: Resolutions of the overlapping body.
         lone_samples: Random offsets of the lone sphere per resolver and resolution (0: none).
