@@ -559,11 +559,11 @@ class WettedSurface:
         self.tri = wp.zeros(0, dtype=wp.vec3i, device=d)
         self._no_tri_n = wp.empty(0, dtype=wp.int32, device=d)
         self._no_tri = wp.empty(0, dtype=wp.vec3i, device=d)
-        # The triple points solved once per update (``wet_triples``) on CUDA, where the exact test's time is its
-        # slowest tests' and triples are most of their candidates; on the CPU, where the mean counts, solving every
-        # triple near the surface once measured slower than the few each tested voxel meets (bench/NOTES.md).
-        # Either way the same answer (tests switch it).
-        self._patches = bool(d.is_cuda)
+        # The triple points solved once per update (``wet_triples``): off on every device. Solving every triple
+        # near the surface once measured slower than the few each tested voxel meets, on the CPU and on an H200
+        # (classify 5.38 ms against 1.48 on the specimen; bench/NOTES.md). The same answer either way (tests
+        # switch it on).
+        self._patches = False
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
