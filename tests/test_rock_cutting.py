@@ -472,7 +472,15 @@ def test_cut_reports_forces_damage_and_fragments(device):
     on the final bond state), the main body the one holding the clamped base, and the counts add up."""
     run = tiny_run(device, 0.0, "all")
     s = run["summary"]
+    rc = load_example("rock_cutting")
+    d = rc.TINY.particle_diameter
+    area = rc.TINY.depth * d * rc.TINY.cutter_width * d  # the cut's cross-section [m^2]
     assert s["fc_mean_N"] > 0 and s["fn_mean_N"] > 0
+    assert s["mse_Pa"] == pytest.approx(s["fc_mean_N"] / area, rel=1e-12)  # MSE: cutting force over the cut's area
+    # Cutting a bonded rock costs of the order of its bonds' strength per unit volume (the tiny cut: about 2 x the
+    # mean bond strength, 107 MPa): a tenth of it or ten times it would mean the cutter misses or ploughs the rock.
+    strength = load_example("bonded_rock").RockParams().strength
+    assert 0.3 * strength < s["mse_Pa"] < 10 * strength, s["mse_Pa"] / strength
     assert s["broken_in_cut"] > 50
     want = components_reference(s["particles"], run["pairs"], run["state"] == 0)
     np.testing.assert_array_equal(run["labels"], want)
