@@ -2,6 +2,8 @@
 CPU stand-in for DEME's solver and tracker (both transfer paths), its errors, and inside real DEME where there is a
 CUDA device and ``deme`` (``pip install -e ".[deme]"``)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import warp as wp
@@ -374,8 +376,10 @@ def test_share_bench_on_the_stand_in_and_its_engines_row(tmp_path):
 
     from warp_lamp.bench import engines as bench_engines
 
-    spec = importlib.util.spec_from_file_location("deme_share", deme_module.__file__.rsplit("/warp_lamp/", 1)[0]
-                                                  + "/bench/deme_share.py")  # fmt: skip
+    # The repository's bench/, beside tests/ (warp_lamp may be installed elsewhere, as CI installs it).
+    spec = importlib.util.spec_from_file_location(
+        "deme_share", Path(__file__).resolve().parents[1] / "bench/deme_share.py"
+    )
     share = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(share)
     out = tmp_path / "x-2026-11-28-deme.json"

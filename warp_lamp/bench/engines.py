@@ -203,8 +203,8 @@ def section_yade_alpha(
 
 
 #: The checkout's DEME bench script and result files (absent from an installed package).
-DEME_SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "deme_share.py"
-RESULTS = Path(__file__).resolve().parent.parent / "bench" / "results"
+DEME_SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "deme_share.py"  # the repository's bench/
+RESULTS = Path(__file__).resolve().parents[2] / "bench" / "results"
 
 
 def deme_section(*, path=None, run: bool | None = None, timeout: float = 600.0) -> dict:
