@@ -531,3 +531,14 @@ def test_call_timings_split_each_call_into_its_parts():
     assert t.cpu == {"read": [0.5, 1.0], "lamp": [1.0, 2.0], "write": [1.5, 3.0]}
     cost = t.cost()
     assert cost["calls"] == 2 and cost["wall"]["total"] == 9.0 and cost["cpu"]["total"] == 6.0
+
+
+def test_bench_engines_paths_name_files_that_exist():
+    """The engines benchmark's files are found where they are: YADE's alpha-shape job inside the package, and (in a
+    checkout) DEME's share script and the result files beside warp_lamp/ (a move of the module broke both once)."""
+    from warp_lamp.bench import engines as bench_engines
+
+    assert bench_engines.JOB.is_file()
+    checkout = Path(__file__).resolve().parents[1]
+    if (checkout / "warp_lamp" / "bench" / "engines.py").resolve() == Path(bench_engines.__file__).resolve():
+        assert bench_engines.DEME_SCRIPT.is_file() and bench_engines.RESULTS.is_dir()

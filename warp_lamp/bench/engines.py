@@ -61,7 +61,7 @@ ALPHA_PROBE = 2.0
 #: Probe radii of the sweep, in mean radii.
 SWEEP = (0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 #: The job YADE runs.
-JOB = Path(__file__).with_name("engines") / "yade_alpha_job.py"
+JOB = Path(__file__).resolve().parents[1] / "engines" / "yade_alpha_job.py"
 
 
 def find_yade() -> str | None:
