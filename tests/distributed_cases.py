@@ -181,7 +181,8 @@ def reach_cases(coll) -> list[dict]:
     """The reach (each rank seeds, reduces and scatters only the cells its particles can reach) on every split and
     margin, on a body long in x: counts bitwise equal to one process; with slabs on two or more ranks, fewer cells
     reduced than the grid holds; particles moved within the margin (a warm update: no escapes, still bitwise);
-    moved past it (escapes counted on every rank), then the reach agreed again (bitwise again); the diagnostics'
+    with slabs, one sphere moved onto another slab (exactly one escape); moved past it (escapes counted on every
+    rank), then the reach agreed again (bitwise again); the diagnostics'
     whole-grid maps; and ``reach="all"``."""
     out = []
     rng = np.random.default_rng(21)
@@ -228,6 +229,14 @@ def reach_cases(coll) -> list[dict]:
             lamp.update(mpos, rad, in_frame=True)
             out.append(_compare(f"reach, {scene_name} / {split}: moved within the margin", lamp.counts_numpy(), want))
             out.append({"case": f"reach, {scene_name} / {split}: no escapes", "ok": lamp.reach_escapes() == 0})
+            if split == "spatial" and coll.size >= 2:
+                # One sphere of the first slab moved onto the last slab's end leaves its rank's window on the y and
+                # z grids and nothing else moves: exactly one escape, counted once (not once per grid).
+                hop = moved.copy()
+                hop[np.argmin(cs[:, 0])] = moved[np.argmax(cs[:, 0])]
+                hpos, _ = _arrays(hop, rs, rows, device, grid)
+                lamp.update(hpos, rad, in_frame=True)
+                out.append({"case": f"reach, {scene_name} / {split}: one escape", "ok": lamp.reach_escapes() == 1})
             # Past the margin: the escapes are counted on every rank; agreed again, the update is bitwise again.
             far = cs + np.array([1.5, 0.0, 0.0]) * (1.0 if scene_name == "random" else -1.0)
             ref_far = reference(far, rs, grid, criterion)
