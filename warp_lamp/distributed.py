@@ -675,8 +675,6 @@ class DistributedFirstHit(_RankSteps, FirstHit):
         self.window = None
         d = self.device
         self._escapes = wp.zeros(1, dtype=wp.int32, device=d)
-        # The window's rectangles for the depth pass that counts escapes: (i0, ni, j0, nj) per grid.
-        self._window_rects = wp.zeros(12, dtype=wp.int32, device=d)
         self._shared = wp.empty(0, dtype=wp.uint64, device=d)
         self._shared_cells = self._no_int
         self._slot_of = self._no_int
@@ -727,7 +725,6 @@ class DistributedFirstHit(_RankSteps, FirstHit):
         mine = _window_rects(box.numpy(), grid.counts, self.reach_margin)
         rects = [r.reshape(3, 4) for r in self.comm.allgather_host(mine.reshape(-1))]
         self.window = _window_struct(rects[self.comm.rank])
-        self._window_rects = wp.array(rects[self.comm.rank].reshape(-1).astype(np.int32), dtype=wp.int32, device=d)
         self.window_cells = int(self.window.n_cells)
         cells = _shared_cells(rects, grid.counts)
         self.shared_cells = len(cells)
@@ -752,7 +749,7 @@ class DistributedFirstHit(_RankSteps, FirstHit):
         return int(self.comm.allreduce_host(self._escapes.numpy().astype(np.int64), "sum")[0])
 
     def launch_seed(self) -> None:
-        """Update step 1: the lamp's seed, on the rank's window only with a reach."""
+        """Update step 1: the lamp's seed, on the rank's window only with a reach (and its escapes counted)."""
         if not self.windowed:
             super().launch_seed()
             return
@@ -760,20 +757,9 @@ class DistributedFirstHit(_RankSteps, FirstHit):
             dist_kernels.dist_seed_window,
             dim=max(self.window_cells, self.n, self.diag.shape[0]),
             inputs=[self._rays(), self.window, self._input.particles, self._ray, self.lamp_mask],
-            outputs=[self.keys, self.counts, self.diag],
+            outputs=[self.keys, self.counts, self.diag, self._escapes],
             device=self.device,
         )
-
-    def launch_depth(self) -> None:
-        """Update step 2: the lamp's depth pass; with a reach, the one that also counts the particles whose
-        footprint left the rank's window (where it reads every sphere anyway: the seed then reads none)."""
-        if not self.windowed:
-            super().launch_depth()
-            return
-        if self.n == 0:
-            return
-        kernel = dist_kernels.lamp_depth_window if self.split else dist_kernels.lamp_depth_sphere_window
-        self._launch_depth(kernel, self._window_rects, self._escapes)
 
     def launch_to_global(self) -> None:
         """Update step: the rank's keys with global ids (with a reach: of the shared cells only, packed)."""

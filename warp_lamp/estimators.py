@@ -274,10 +274,6 @@ class FirstHit(Estimator):
             kernel = lamp_kernels.lamp_depth_slots
         else:
             kernel = lamp_kernels.lamp_depth if self.split else lamp_kernels.lamp_depth_sphere
-        self._launch_depth(kernel, self._no_flags, self._no_flags)
-
-    def _launch_depth(self, kernel, window: wp.array, escapes: wp.array) -> None:
-        """The depth pass's launch, with ``window`` and ``escapes`` for a kernel that counts escapes (else empty)."""
         # An order sorted for another particle count would skip particles: run unordered until the next reorder.
         order = self.order if self._ordered_n == self.n else self._no_order
         wp.launch(
@@ -292,9 +288,8 @@ class FirstHit(Estimator):
                 self.depth_slots,
                 order,
                 self._hidden_flags,
-                window,
             ],
-            outputs=[self.keys, self._depth_diag, escapes],
+            outputs=[self.keys, self._depth_diag],
             device=self.device,
             block_dim=lamp_kernels.DEPTH_BLOCK_DIM,
         )

@@ -12,8 +12,8 @@ indices is needed.
 With a reach (``ReachWindow``), a rank seeds and scatters only the cells its particles can reach (one rectangle of
 cells per grid, agreed at setup with a margin), and offers to the reduction only the cells that two or more ranks'
 rectangles share (``dist_pack``, through a list of those cells): a cell only one rank can reach has that rank's
-key as its reduced key. The depth pass (``lamp_depth_window``) counts the particles whose footprint leaves the
-rectangle, after which the reach must be agreed again.
+key as its reduced key. ``dist_seed_window`` counts the particles whose footprint leaves the rectangle, after which
+the reach must be agreed again.
 
 ``flip`` (1) xors the top bit of every key before and after the reduction: for collectives that reduce int64 but
 not uint64 (torch.distributed), it turns unsigned key order into signed order, and maps EMPTY_KEY to INT64_MAX,
@@ -25,14 +25,7 @@ import warp as wp
 from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
 from warp_lamp.kernels.grid import LampGridParams, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
-from warp_lamp.kernels.lamp import (
-    LampParticles,
-    _depth_kernel,
-    clear_particle_counts,
-    frame_sphere,
-    seed_key,
-    walled_loads,
-)
+from warp_lamp.kernels.lamp import LampParticles, clear_particle_counts, frame_sphere, seed_key, walled_loads
 from warp_lamp.kernels.porosity import PI, box_cell_volume
 from warp_lamp.kernels.walls import LampWalls
 
@@ -439,6 +432,27 @@ def dist_reach(
                 wp.atomic_max(box, 4 * a + 3, s[3])
 
 
+@wp.func
+def escapes_window(
+    grid: LampGridParams, win: ReachWindow, particles: LampParticles, p: wp.int32, ray: wp.int32, lamp_mask: wp.int32
+) -> wp.bool:
+    """Whether particle p's footprint on a grid whose lamps are on leaves the window (an invalid or inactive
+    particle offers nothing, so it never escapes)."""
+    sphere = frame_sphere(grid, particles, p)
+    if not sphere.casts:
+        return False
+    out = False
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) != 0:
+            s = footprint_span(grid, sphere.center, sphere.radius, a, ray)
+            if s[0] <= s[1] and s[2] <= s[3]:
+                if s[0] < win.i0[a] or s[1] >= win.i0[a] + win.ni[a]:
+                    out = True
+                if s[2] < win.j0[a] or s[3] >= win.j0[a] + win.nj[a]:
+                    out = True
+    return out
+
+
 @wp.kernel
 def dist_seed_window(
     grid: LampGridParams,
@@ -450,12 +464,15 @@ def dist_seed_window(
     keys: wp.array[wp.uint64],
     counts: wp.array[wp.int64],
     diag: wp.array[wp.int32],
+    escapes: wp.array[wp.int32],
 ):
     """``lamp_seed`` on the window's cells only (thread t: window cell t); thread t also clears particle t's
-    counts and diagnostic t. The escapes are counted by the depth pass (``lamp_depth_window``), which reads every
-    sphere anyway."""
+    counts and diagnostic t, and counts particle t in ``escapes`` if its footprint left the window."""
     t = wp.tid()
     clear_particle_counts(t, particles.n, counts, diag)
+    if t < particles.n:
+        if escapes_window(grid, win, particles, t, criterion, lamp_mask):
+            wp.atomic_add(escapes, 0, 1)
     if t >= win.n_cells:
         return
     wc = window_cell(grid, win, t)
@@ -463,12 +480,6 @@ def dist_seed_window(
     cell = grid_cell(grid, c)
     for side in range(2):
         keys[2 * c + side] = seed_key(grid, particles, cell, side, keys[2 * c + side], criterion)
-
-
-# The depth pass with the reach's escape count (kernels/lamp.py ``_depth_kernel``), compiled here so that the
-# one-device lamp's module keeps its kernels (and its compile time).
-lamp_depth_window = _depth_kernel(1, True, True, module=__name__)
-lamp_depth_sphere_window = _depth_kernel(1, False, True, module=__name__)
 
 
 @wp.kernel

@@ -358,38 +358,13 @@ def lamp_order_keys(
         cell_keys[p] = grid.offset[a] + j * grid.n_u[a] + i
 
 
-@wp.func
-def leaves_window(
-    grid: LampGridParams, window: wp.array[wp.int32], sphere: FrameSphere, ray: wp.int32, lamp_mask: wp.int32
-) -> wp.bool:
-    """Whether a casting sphere's footprint (its rows as the depth pass's, its columns those of the whole disk) on
-    a grid whose lamps are on leaves the window: window[4 a : 4 a + 4] = (i0, ni, j0, nj), grid a's rectangle."""
-    out = False
-    r = sphere.radius
-    for a in range(3):
-        if ((lamp_mask >> (2 * a)) & 3) != 0:
-            pu = sphere.center[(a + 1) % 3] - grid.corner_u[a]
-            pv = sphere.center[(a + 2) % 3] - grid.corner_v[a]
-            cols = cell_span(pu - r, pu + r, grid.h_u[a], grid.n_u[a], ray)
-            rows = cell_span(pv - r, pv + r, grid.h_v[a], grid.n_v[a], ray)
-            if cols[0] <= cols[1] and rows[0] <= rows[1]:
-                if cols[0] < window[4 * a] or cols[1] >= window[4 * a] + window[4 * a + 1]:
-                    out = True
-                if rows[0] < window[4 * a + 2] or rows[1] >= window[4 * a + 2] + window[4 * a + 3]:
-                    out = True
-    return out
-
-
-def _depth_kernel(slots: int, shared: bool, count_escapes: bool = False, module=None):
+def _depth_kernel(slots: int, shared: bool):
     """The depth pass, compiled for one key per lamp and cell (``slots`` 1: the criteria's lamps) or generic in
     ``depth_slots`` (``slots`` 0: the samples of the area estimator), and for one thread per sphere (``shared``
     False) or ``split`` threads per (sphere, axis). Each specialisation drops code that the others need: the GPU
-    measured every unused branch in registers (bench/NOTES.md v5).
+    measured every unused branch in registers (bench/NOTES.md v5)."""
 
-    ``count_escapes`` (the distributed lamp's reach, compiled into ``module``): the pass also counts in ``escapes``
-    the spheres whose footprint leaves the rank's ``window`` (``leaves_window``), where it reads each sphere anyway;
-    the other specialisations never read ``window`` or ``escapes`` (empty arrays)."""
-
+    @wp.kernel
     def lamp_depth(
         grid: LampGridParams,
         particles: LampParticles,
@@ -399,11 +374,9 @@ def _depth_kernel(slots: int, shared: bool, count_escapes: bool = False, module=
         depth_slots: wp.int32,
         order: wp.array[wp.int32],
         hidden: wp.array[wp.int32],
-        window: wp.array[wp.int32],
         # outputs
         keys: wp.array[wp.uint64],
         diag: wp.array[wp.int32],
-        escapes: wp.array[wp.int32],
     ):
         """The depth pass: every sphere offers (depth, id) keys to the low and high lamp of every cell its projected
         disk covers, on the three grids, with atomic_min, so the order of offers cannot change the result.
@@ -438,10 +411,6 @@ def _depth_kernel(slots: int, shared: bool, count_escapes: bool = False, module=
             return
         if share == 0 and lamp_outside(grid, sphere, lamp_mask):
             wp.atomic_add(diag, DIAG_OUTSIDE, 1)
-        if wp.static(count_escapes):
-            # One thread per sphere (axis 0's first row, order being a permutation) counts it.
-            if share == 0 and leaves_window(grid, window, sphere, criterion, lamp_mask):
-                wp.atomic_add(escapes, 0, 1)
         r = sphere.radius
         r2 = r * r
         skip = int(0)
@@ -505,7 +474,7 @@ def _depth_kernel(slots: int, shared: bool, count_escapes: bool = False, module=
                                 if (live & 2) != 0:
                                     offer_slots(keys, key_slot(c, 1, depth_slots), depth_slots, high)
 
-    return wp.kernel(lamp_depth, module=module)
+    return lamp_depth
 
 
 lamp_depth_sphere = _depth_kernel(1, False)
