@@ -93,10 +93,10 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
 #: (threads per sphere, bits per thread, near list, prune from, exact-test queue): the tests queued or not, the
 #: queue too small for the band (the rest tested by the classify threads), each path of the exact test.
 DECOMPOSITIONS = (
-    (3, 8, 0, 0, 1 << 20, 128, True, 8),
-    (8, 1, 2, 0, 300, 0, False, 8),
-    (1, 32, 64, 65, 0, 5, True, 1),
-    (1, 32, 64, 0, 1 << 20, 128, False, 8),
+    (3, 8, 0, 0, 1 << 20, 128),
+    (8, 1, 2, 0, 300, 0),
+    (1, 32, 64, 65, 0, 5),
+    (1, 32, 64, 0, 1 << 20, 128),
 )
 
 
@@ -115,18 +115,13 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
     # Every thread decomposition (threads per sphere, bits per crossing thread, the exact tests queued, with the
     # queue overflowing or not) and every path of the exact test (its local list of near spheres cut to 0 or 2:
     # the second gather and the bin-walk search; no pruning of covered spheres; the spheres gathered once per point
-    # for its candidates' searches, none or only 5 of them: the bins walked per candidate; the triple points solved
-    # once per update or by each voxel, and once per update with one slot per sphere: the overflowing spheres' by
-    # each voxel) give the same answer.
-    for slices, bits, near, prune, capacity, gather, patches, tri_cap in DECOMPOSITIONS:
-        surface._slices, surface._bits, surface._patches = slices, bits, patches
+    # for its candidates' searches, none or only 5 of them: the bins walked per candidate) give the same answer.
+    for slices, bits, near, prune, capacity, gather in DECOMPOSITIONS:
+        surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
-        surface._box.tri_cap = tri_cap
         surface._exact_queue(capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
-        d = assert_matches(surface, ref)
-        if patches and tri_cap == 1 and rho >= 0.25:
-            assert d.triple_overflow > 0  # spheres past one kept triple: their triples solved per voxel
+        assert_matches(surface, ref)
 
 
 def test_float64_inputs_differ_only_where_flagged(device, rng):
@@ -753,10 +748,9 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune, capacity, gather, patches, tri_cap in DECOMPOSITIONS:
-        surface._slices, surface._bits, surface._patches = slices, bits, patches
+    for slices, bits, near, prune, capacity, gather in DECOMPOSITIONS:
+        surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
-        surface._box.tri_cap = tri_cap
         surface._exact_queue(capacity)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)

@@ -79,9 +79,8 @@ __all__ = [
     "wetted_nbytes",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag, and
-#: its triple points (a count and ``TRI_CAP`` slots of three int32).
-BYTES_PER_PARTICLE = 36 + 4 + 12 * KB.TRI_CAP
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
+BYTES_PER_PARTICLE = 36
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
@@ -357,8 +356,6 @@ class WettedDiagnostics:
         force: Resultant force on the particles [N], shape (3,), when a pressure was given.
         wall_forces: Force on each wall [N], shape (W, 3), when a pressure was given (world coordinates when the
             lamp gives it, ``ShiningLamp.diagnostics``; else the frame's).
-        triple_overflow: Spheres with more valid triple points than the once-per-update solve keeps
-            (``TRI_CAP``); the exact test solves their triples itself (the same answer, slower).
     """
 
     counts: np.ndarray
@@ -387,7 +384,6 @@ class WettedDiagnostics:
     thin_faces: dict | None = None
     force: np.ndarray | None = None
     wall_forces: np.ndarray | None = None
-    triple_overflow: int = 0
 
 
 class WettedSurface:
@@ -501,7 +497,6 @@ class WettedSurface:
         box.near_list = KB.NEAR_LIST
         box.prune_from = KB.PRUNE_FROM
         box.gather = KB.GATHER
-        box.tri_cap = KB.TRI_CAP
         box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])
         box.bin_n = wp.vec3i(*(int(x) for x in lay["bins"]))
@@ -555,15 +550,6 @@ class WettedSurface:
         self.hits = wp.zeros(0, dtype=wp.int32, device=d)
         self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
         self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
-        self.tri_n = wp.zeros(0, dtype=wp.int32, device=d)
-        self.tri = wp.zeros(0, dtype=wp.vec3i, device=d)
-        self._no_tri_n = wp.empty(0, dtype=wp.int32, device=d)
-        self._no_tri = wp.empty(0, dtype=wp.vec3i, device=d)
-        # The triple points solved once per update (``wet_triples``): off on every device. Solving every triple
-        # near the surface once measured slower than the few each tested voxel meets, on the CPU and on an H200
-        # (classify 5.38 ms against 1.48 on the specimen; bench/NOTES.md). The same answer either way (tests
-        # switch it on).
-        self._patches = False
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         self.n = 0
 
@@ -591,8 +577,6 @@ class WettedSurface:
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
-            self.tri_n = wp.zeros(n, dtype=wp.int32, device=self.device)
-            self.tri = wp.zeros(n * KB.TRI_CAP, dtype=wp.vec3i, device=self.device)
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -737,29 +721,6 @@ class WettedSurface:
                 outputs=[self.exposed],
                 device=d,
             )
-        tri_n, tri = self._no_tri_n, self._no_tri
-        if n > 0 and self._patches:
-            tri_n, tri = self.tri_n, self.tri
-            tri_n.zero_()
-            slices = 8 if d.is_cuda else 1
-            wp.launch(
-                K.wet_triples,
-                dim=n * slices,
-                inputs=[
-                    positions,
-                    radii,
-                    box,
-                    walls,
-                    self.reach,
-                    self.heads,
-                    self.next_in_bin,
-                    self.rmax,
-                    self.exposed,
-                    slices,
-                ],
-                outputs=[tri_n, tri, self.diag],
-                device=d,
-            )
         if self._capacity > 0:
             self.queued.zero_()
         wp.launch(
@@ -779,8 +740,6 @@ class WettedSurface:
                 self.exposed,
                 self._bits,
                 self._capacity,
-                tri_n,
-                tri,
             ],
             outputs=[self.fluid, self.diag, self.queue, self.queued],
             device=d,
@@ -801,8 +760,6 @@ class WettedSurface:
                     self.exposed,
                     self.queue,
                     self.queued,
-                    tri_n,
-                    tri,
                 ],
                 outputs=[self.fluid, self.diag],
                 device=d,
@@ -846,8 +803,6 @@ class WettedSurface:
                 self.next_in_bin,
                 self.rmax,
                 self.exposed,
-                tri_n,
-                tri,
             ],
             outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
             device=d,
@@ -903,7 +858,6 @@ class WettedSurface:
             nonconverged=bool(diag[KB.DIAG_NONCONVERGED]),
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
-            triple_overflow=int(diag[KB.DIAG_TRI_OVERFLOW]),
         )
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()

@@ -38,12 +38,8 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_GAPS,
     DIAG_RESCUED,
     DIAG_THIN,
-    DIAG_TRI_OVERFLOW,
     DIAG_UNCERTAIN,
     SLACK,
-    TRI_CAP,
-    TRI_COVER,
-    TRI_MEET,
     WALL_SLACK,
     WALL_TAG,
     BinSpan,
@@ -1005,137 +1001,6 @@ def wall_search(
 
 
 @wp.func
-def balls_meet(ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, tol: wp.float64) -> wp.bool:
-    """Balls (ci, big_i) and (cj, big_j) overlap or touch, to within the relative slack tol."""
-    e = cj - ci
-    s = (big_i + big_j) * (wp.float64(1.0) + tol)
-    return dot3(e, e) <= s * s
-
-
-@wp.func
-def cube_clamped(z: wp.vec3d, box: WetBox) -> wp.bool:
-    """The voxel-centre cube holding z lies beyond the corners ``candidate_check`` clamps to (z more than a cell
-    and a half outside the box): its segments may then reach past the searches around z."""
-    for a in range(3):
-        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
-        if u != wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1)):
-            return True
-    return False
-
-
-@wp.func
-def triple_bits(
-    i: wp.int32, j: wp.int32, k: wp.int32, tri_n: wp.array[wp.int32], tri: wp.array[wp.vec3i], box: WetBox
-) -> wp.int32:
-    """``wet_triples``'s verdict on the two points of triple (i, j, k): bit s (s = 0, 1) when point s is a valid
-    candidate, bit 2 + s when it must be checked where it is used; 0 when neither is kept (no point, or blocked or
-    unreachable)."""
-    m = wp.min(tri_n[i], TRI_CAP)
-    for t in range(wp.min(m, box.tri_cap)):
-        e = tri[i * TRI_CAP + t]
-        if e[0] == j and e[1] == k:
-            return e[2]
-    return 0
-
-
-@wp.kernel
-def wet_triples(
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    box: WetBox,
-    walls: LampWalls,
-    reach: wp.array[wp.uint32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    rmax: wp.array[wp.float32],
-    exposed: wp.array[wp.int32],
-    slices: wp.int32,
-    # outputs
-    tri_n: wp.array[wp.int32],
-    tri: wp.array[wp.vec3i],
-    diag: wp.array[wp.int32],
-):
-    """Triple points once per update: ``slices`` threads per exposed sphere i (zeroed ``tri_n`` before), each
-    taking every ``slices``-th exposed j > i whose inflated ball meets i's, with every exposed k > j that meets
-    both: the two points where the three inflated spheres meet (``vertex_points``, as the exact test computes
-    them) are checked once (``candidate_check`` around the point itself: every ball that can hold it and every
-    segment to its cube's corners lie within its searches) and the triples with a valid point kept in i's
-    ``TRI_CAP`` slots; a point whose cube is clamped is kept to be checked where it is used. The exact test then
-    reads them instead of solving each triple again for every voxel near it. More than ``TRI_CAP``: counted, and
-    the exact test solves that sphere's triples itself."""
-    t = wp.tid()
-    i = t / slices
-    part = t - i * slices
-    if exposed[i] == 0:
-        return
-    rho = box.rho
-    r_max = wp.float64(rmax[0])
-    ci = centre_of(i, positions)
-    big_i = wp.float64(radii[i]) + rho
-    span = bin_span(ci, (big_i + r_max + rho) * (wp.float64(1.0) + TRI_MEET), box)
-    hint = int(-1)
-    nj = int(0)
-    for bz in range(span.lo[2], span.hi[2] + 1):
-        for by in range(span.lo[1], span.hi[1] + 1):
-            for bx in range(span.lo[0], span.hi[0] + 1):
-                j = bin_head(bx, by, bz, box, heads)
-                while j >= 0:
-                    if j > i and exposed[j] != 0:
-                        cj = centre_of(j, positions)
-                        big_j = wp.float64(radii[j]) + rho
-                        if balls_meet(ci, big_i, cj, big_j, TRI_MEET):
-                            if nj % slices == part:
-                                for bz2 in range(span.lo[2], span.hi[2] + 1):
-                                    for by2 in range(span.lo[1], span.hi[1] + 1):
-                                        for bx2 in range(span.lo[0], span.hi[0] + 1):
-                                            k = bin_head(bx2, by2, bz2, box, heads)
-                                            while k >= 0:
-                                                if k > j and exposed[k] != 0:
-                                                    ck = centre_of(k, positions)
-                                                    big_k = wp.float64(radii[k]) + rho
-                                                    if balls_meet(ci, big_i, ck, big_k, TRI_MEET) and balls_meet(
-                                                        cj, big_j, ck, big_k, TRI_MEET
-                                                    ):
-                                                        vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
-                                                        if vp[2, 0] != wp.float64(0.0):
-                                                            bits = int(0)
-                                                            for s in range(2):
-                                                                z = wp.vec3d(vp[s, 0], vp[s, 1], vp[s, 2])
-                                                                if cube_clamped(z, box):
-                                                                    bits = bits | (4 << s)
-                                                                else:
-                                                                    res = candidate_check(
-                                                                        z,
-                                                                        z,
-                                                                        i,
-                                                                        j,
-                                                                        k,
-                                                                        hint,
-                                                                        r_max,
-                                                                        positions,
-                                                                        radii,
-                                                                        heads,
-                                                                        next_in_bin,
-                                                                        reach,
-                                                                        box,
-                                                                        walls,
-                                                                    )
-                                                                    if res == CANDIDATE_OK:
-                                                                        bits = bits | (1 << s)
-                                                                    elif res >= 0:
-                                                                        hint = res
-                                                            if bits != 0:
-                                                                slot = wp.atomic_add(tri_n, i, 1)
-                                                                if slot < box.tri_cap:
-                                                                    tri[i * TRI_CAP + slot] = wp.vec3i(j, k, bits)
-                                                                elif slot == box.tri_cap:
-                                                                    wp.atomic_add(diag, DIAG_TRI_OVERFLOW, 1)
-                                                k = next_in_bin[k]
-                            nj += 1
-                    j = next_in_bin[j]
-
-
-@wp.func
 def probe_reaches(
     x: wp.vec3d,
     lattice: wp.int32,
@@ -1148,8 +1013,6 @@ def probe_reaches(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    tri_n: wp.array[wp.int32],
-    tri: wp.array[wp.vec3i],
 ) -> wp.bool:
     """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
@@ -1346,34 +1209,16 @@ def probe_reaches(
                     if res >= 0:
                         hint = res
                 if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
-                    # Triples that ``wet_triples`` solved this update are read, not solved again: only their
-                    # valid points (no check) and those it left to check here. Same candidates, same answers.
-                    patched = tri_n.shape[0] > 0
-                    if patched:
-                        patched = tri_n[i] <= box.tri_cap and balls_meet(ci, big_i, cj, big_j, TRI_COVER)
                     for e in range(b + 1, cnt):
                         k = ids[e]
                         ck = centre_of(k, positions)
                         big_k = wp.float64(radii[k]) + rho
-                        look = int(3)
-                        known = int(0)
-                        if patched:
-                            if balls_meet(ci, big_i, ck, big_k, TRI_COVER) and balls_meet(
-                                cj, big_j, ck, big_k, TRI_COVER
-                            ):
-                                tb = triple_bits(i, j, k, tri_n, tri, box)
-                                look = (tb | (tb >> 2)) & 3
-                                known = tb & 3
-                        if look == 0:
-                            continue
                         vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
                         if vp[2, 0] != wp.float64(0.0):
                             for t in range(2):
                                 z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                                 w = x - z
-                                if ((look >> t) & 1) != 0 and dot3(w, w) <= rho2:
-                                    if ((known >> t) & 1) != 0:
-                                        return True
+                                if dot3(w, w) <= rho2:
                                     res = candidate_check_list(
                                         x,
                                         z,
@@ -1473,8 +1318,6 @@ def wet_classify(
     exposed: wp.array[wp.int32],
     bits: wp.int32,
     capacity: wp.int32,
-    tri_n: wp.array[wp.int32],
-    tri: wp.array[wp.vec3i],
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -1510,7 +1353,7 @@ def wet_classify(
                 queue[slot] = idx * 32 + b
                 continue
         x = voxel_point(wjk, b, box)
-        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, tri_n, tri):
+        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
     if add != wp.uint32(0):
@@ -1535,8 +1378,6 @@ def wet_classify_queued(
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
-    tri_n: wp.array[wp.int32],
-    tri: wp.array[wp.vec3i],
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -1551,9 +1392,7 @@ def wet_classify_queued(
     b = v - idx * 32
     wjk = word_coords(box, idx)
     x = voxel_point(wjk, b, box)
-    if probe_reaches(
-        x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls, tri_n, tri
-    ):
+    if probe_reaches(x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls):
         wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
         wp.atomic_add(diag, DIAG_RESCUED, 1)
 
@@ -1655,8 +1494,6 @@ def wet_thin(
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
-    tri_n: wp.array[wp.int32],
-    tri: wp.array[wp.vec3i],
     # outputs
     counts: wp.array[wp.int64],
     hits: wp.array[wp.int32],
@@ -1727,9 +1564,7 @@ def wet_thin(
                     continue
                 wp.atomic_add(diag, DIAG_GAPS, 1)
                 gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
-                if not probe_reaches(
-                    gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, tri_n, tri
-                ):
+                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                     continue
             # This chord starts a merged interval: walk the chords after it in order while they join it.
             cur = me.hi
@@ -1760,7 +1595,7 @@ def wet_thin(
                         wp.atomic_add(diag, DIAG_GAPS, 1)
                         gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
                         if probe_reaches(
-                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, tri_n, tri
+                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
                         ):
                             join = 0
                     if join != 0:

@@ -28,9 +28,7 @@ DIAG_UNCERTAIN = wp.constant(6)
 DIAG_RESCUED = wp.constant(7)
 DIAG_THIN = wp.constant(8)
 DIAG_GAPS = wp.constant(9)
-#: Spheres whose triple points overflowed their ``TRI_CAP`` slots (their triples are solved per voxel).
-DIAG_TRI_OVERFLOW = wp.constant(10)
-N_DIAG = 11
+N_DIAG = 10
 #: ``candidate_check``'s answer for a valid candidate.
 CANDIDATE_OK = wp.constant(-2)
 #: Spheres a point's exact test keeps in a local list (a uint64 mask marks them); with more it walks the bins.
@@ -47,12 +45,6 @@ DeepDepths = wp.types.vector(length=DEEP, dtype=wp.float64)
 #: ``WetBox.skip`` bits, for benchmarks only (they make answers wrong): the exact test skips vertex candidates (1),
 #: edge candidates and their vertices (2), face candidates (4), stops before its pruning (8) or after it (16).
 SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 8, 16
-#: Triple points kept per sphere (the lowest index of the three) by ``wet_triples``: (j, k, bits) each.
-TRI_CAP = 8
-#: ``wet_triples`` solves the triples whose inflated balls meet pairwise to within this relative slack; the exact
-#: test reads a triple from them when they meet to within ``TRI_COVER`` (the smaller: every triple it reads is there).
-TRI_MEET = wp.constant(wp.float64(2.0e-6))
-TRI_COVER = wp.constant(wp.float64(1.0e-6))
 #: Spheres a point's exact test gathers once, for all its candidates' blocker and segment searches: those within
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
@@ -85,7 +77,6 @@ class WetBox:
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
     gather: wp.int32  # spheres the exact test gathers for its candidates' searches, <= GATHER (tests lower it)
-    tri_cap: wp.int32  # triple points kept per sphere, <= TRI_CAP (tests lower it to overflow)
     skip: wp.int32  # 0; benchmarks only (wrong answers, for timing the exact test's parts): SKIP_* bits
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
