@@ -632,6 +632,40 @@ def test_torch_gloo_one_rank(tmp_path):
             torch_dist.destroy_process_group()
 
 
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_torch_gloo_processes(tmp_path, ranks):
+    """2 and 3 processes over torch.distributed's Gloo on the CPU (int64 keys through the top-bit flip): every mode,
+    split (slabs, blocks, random, lopsided, an empty rank) and porosity method bitwise equal to one process, the
+    reach's escapes counted (where torch is installed)."""
+    torch_dist = pytest.importorskip("torch.distributed")
+    if not torch_dist.is_available():
+        pytest.skip("torch.distributed is not available in this torch build")
+    distributed_cases.lamp_cases(LocalCollective("cpu"), quick=True)  # compile once, before the ranks load
+    out, store = tmp_path / "ranks.json", tmp_path / "store"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    script = str(ROOT / "tests" / "distributed_ranks.py")
+    procs = [
+        subprocess.Popen(
+            [sys.executable, script, "--gloo", str(store), "--rank", str(k), "--size", str(ranks), "--json", str(out)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for k in range(ranks)
+    ]
+    logs = [p.communicate(timeout=300)[0] for p in procs]
+    assert all(p.returncode == 0 for p in procs), "\n".join(log[-2000:] for log in logs)
+    summary = json.loads(out.read_text())
+    assert summary["ranks"] == ranks and summary["ok"] and summary["failed"] == 0
+    assert "Gloo" in summary["library"]
+    names = " ".join(r["case"] for r in summary["per_rank"][0]["results"])
+    for split in distributed_cases.SPLITS:
+        assert f"/ {split}" in names
+    for needle in ("area", "reach", "escapes counted", "porosity exact"):
+        assert needle in names, needle
+
+
 def test_one_rank_on_the_whole_body_equals_shining_lamp_on_every_device(device):
     """A rank holding every particle in shuffled rows gets ShiningLamp's counts in its rows, on every device."""
     rng = np.random.default_rng(9)

@@ -753,13 +753,22 @@ class DistributedFirstHit(_RankSteps, FirstHit):
         if not self.windowed:
             super().launch_seed()
             return
+        grid, particles = self._rays(), self._input.particles
         wp.launch(
             dist_kernels.dist_seed_window,
             dim=max(self.window_cells, self.n, self.diag.shape[0]),
-            inputs=[self._rays(), self.window, self._input.particles, self._ray, self.lamp_mask],
-            outputs=[self.keys, self.counts, self.diag, self._escapes],
+            inputs=[grid, self.window, particles, self._ray],
+            outputs=[self.keys, self.counts, self.diag],
             device=self.device,
         )
+        if self.n:
+            wp.launch(
+                dist_kernels.dist_escapes,
+                dim=self.n,
+                inputs=[grid, self.window, particles, self._ray, self.lamp_mask],
+                outputs=[self._escapes],
+                device=self.device,
+            )
 
     def launch_to_global(self) -> None:
         """Update step: the rank's keys with global ids (with a reach: of the shared cells only, packed)."""
