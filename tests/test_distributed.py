@@ -226,6 +226,67 @@ def test_reach_box_holds_every_lit_cell(device, criterion):
             assert np.all(lo >= ref[a, [0, 2]] - 1) and np.all(hi <= ref[a, [1, 3]] + 1)
 
 
+@pytest.mark.parametrize("ray", [0, 1, 2])
+def test_escape_filter_is_the_exact_test(device, ray):
+    """dist_escapes' comparisons-only filter counts the same escapes as the exact footprint test alone, for random
+    windows (inner, at the grid's edges, empty, whole) and particles crowding their edges, turned frames, lamps
+    off, inactive and non-finite particles, on every device."""
+    from warp_lamp.distributed import _window_struct
+
+    rng = np.random.default_rng(40 + ray)
+    low, high = np.array([-1.0, 0.5, 0.0]), np.array([4.0, 3.0, 3.5])
+    grid = LampGrid(low, high, (0.25, 0.3, 0.2))
+    n = 4000
+    counts = grid.counts
+    origin, rotation = grid.pose_arrays(device, in_frame=True)
+    params = grid.params(origin, rotation)
+    exact_escapes = 0
+    for trial in range(12):
+        rect = np.zeros((3, 4), dtype=np.int64)
+        for a in range(3):
+            nu, nv = (int(x) for x in counts[a])
+            kind = trial % 4
+            if kind == 0:  # inner
+                i0, j0 = rng.integers(1, nu // 2), rng.integers(1, nv // 2)
+                rect[a] = (i0, rng.integers(1, nu - i0), j0, rng.integers(1, nv - j0))
+            elif kind == 1:  # at the grid's edges
+                rect[a] = (0, rng.integers(1, nu + 1), rng.integers(0, nv // 2), nv)
+            elif kind == 2:  # whole grid, or one grid's window empty
+                rect[a] = (0, nu, 0, nv) if a else (0, 0, 0, 0)
+            else:
+                rect[a] = (nu // 3, nu // 3, nv // 4, nv // 2)
+        # Particles near the window's edges of grid 0: centres within a few cells of them, radii up to 2 cells.
+        lo = grid.corner[0] + np.array([rect[0, 0], rect[0, 2]]) * grid.cell[0]
+        hi = grid.corner[0] + np.array([rect[0, 0] + rect[0, 1], rect[0, 2] + rect[0, 3]]) * grid.cell[0]
+        edge = np.where(rng.random((n, 2)) < 0.5, lo, hi)
+        c = rng.uniform(low - 0.5, high + 0.5, (n, 3))
+        c[: n // 2, 1:] = edge[: n // 2] + rng.normal(0.0, 0.3, (n // 2, 2))
+        r = rng.uniform(0.01, 0.5, n)
+        c[7] = np.nan
+        r[9] = -1.0
+        active = (rng.random(n) > 0.1).astype(np.int32)
+        particles = lamp_kernels.LampParticles()
+        particles.positions = wp.array(c.astype(np.float32), dtype=wp.vec3, device=device)
+        particles.radii = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)
+        particles.active = wp.array(active, dtype=wp.int32, device=device)
+        particles.n = n
+        mask = 0b111111 if trial % 3 else 0b001111
+        got = []
+        for bounds in (params, None):  # the filter, then every particle through the exact test
+            escapes = wp.zeros(1, dtype=wp.int32, device=device)
+            wp.launch(
+                dist_kernels.dist_escapes,
+                dim=n,
+                inputs=[params, _window_struct(rect, bounds), particles, ray, mask],
+                outputs=[escapes],
+                device=device,
+            )
+            got.append(int(escapes.numpy()[0]))
+        assert got[0] == got[1], (trial, got)
+        exact_escapes += got[1]
+    assert exact_escapes > 100  # the edges were crowded: the filter had escapes to keep
+
+
 def test_window_scatter_reference(device):
     """dist_pack and dist_scatter_window against the scatter's reference: the window's shared cells decided by the
     reduced keys, its other cells by the rank's own key (no other rank reaches them), nothing outside it."""
@@ -495,7 +556,7 @@ def test_bad_ids_are_refused():
     """set_ids names the first bad index: negative, too large, repeated; update before set_ids and a particle count
     other than set_ids' are refused by name; the wetted surface is refused with its reason."""
     grid = LampGrid((0.0, 0.0, 0.0), (3.0, 2.0, 2.5), 0.5)
-    lamp = DistributedLamp(grid, None)
+    lamp = DistributedLamp(grid, None, device="cpu")
     pos = wp.zeros(3, dtype=wp.vec3, device="cpu")
     rad = wp.full(3, 0.3, dtype=wp.float32, device="cpu")
     with pytest.raises(RuntimeError, match="set_ids"):

@@ -724,7 +724,7 @@ class DistributedFirstHit(_RankSteps, FirstHit):
             )
         mine = _window_rects(box.numpy(), grid.counts, self.reach_margin)
         rects = [r.reshape(3, 4) for r in self.comm.allgather_host(mine.reshape(-1))]
-        self.window = _window_struct(rects[self.comm.rank])
+        self.window = _window_struct(rects[self.comm.rank], self._rays())
         self.window_cells = int(self.window.n_cells)
         cells = _shared_cells(rects, grid.counts)
         self.shared_cells = len(cells)
@@ -860,7 +860,24 @@ def _window_rects(box: np.ndarray, counts: np.ndarray, margin: int) -> np.ndarra
     return out
 
 
-def _window_struct(rect: np.ndarray) -> dist_kernels.ReachWindow:
+def _window_bounds(i0: int, ni: int, n: int, h: float) -> tuple[float, float]:
+    """Float32 bounds [lo, hi] (from the grid's corner) on a particle's extent along one axis of a grid that keep
+    every cell the exact test may count inside cells [i0, i0 + ni): two cells in from each window edge, rounded
+    inwards; unbounded at an edge the grid shares (the exact test clamps there), empty for an empty window."""
+    if ni <= 0:
+        return math.inf, -math.inf
+    lo = -math.inf if i0 <= 0 else float(np.float32((i0 + 2) * h))
+    hi = math.inf if i0 + ni >= n else float(np.float32((i0 + ni - 2) * h))
+    if i0 > 0 and lo < (i0 + 2) * h:
+        lo = float(np.nextafter(np.float32(lo), np.float32(np.inf)))
+    if i0 + ni < n and hi > (i0 + ni - 2) * h:
+        hi = float(np.nextafter(np.float32(hi), np.float32(-np.inf)))
+    return lo, hi
+
+
+def _window_struct(rect: np.ndarray, params=None) -> dist_kernels.ReachWindow:
+    """The window's struct; ``params`` (the grid's LampGridParams) sets the escape test's bounds (none: every
+    particle takes the exact test)."""
     win = dist_kernels.ReachWindow()
     sizes = rect[:, 1] * rect[:, 3]
     first = np.concatenate([[0], np.cumsum(sizes)[:2]])
@@ -870,6 +887,13 @@ def _window_struct(rect: np.ndarray) -> dist_kernels.ReachWindow:
     win.nj = wp.vec3i(*(int(x) for x in rect[:, 3]))
     win.first = wp.vec3i(*(int(x) for x in first))
     win.n_cells = int(sizes.sum())
+    bounds = np.array([[math.inf] * 3, [-math.inf] * 3] * 2)  # rows lo_u, hi_u, lo_v, hi_v: every test fails
+    if params is not None:
+        for a in range(3):
+            i0, ni, j0, nj = (int(x) for x in rect[a])
+            bounds[0, a], bounds[1, a] = _window_bounds(i0, ni, int(params.n_u[a]), float(params.h_u[a]))
+            bounds[2, a], bounds[3, a] = _window_bounds(j0, nj, int(params.n_v[a]), float(params.h_v[a]))
+    win.lo_u, win.hi_u, win.lo_v, win.hi_v = (wp.vec3(*(float(x) for x in row)) for row in bounds)
     return win
 
 

@@ -23,9 +23,16 @@ still the identity of MIN.
 import warp as wp
 
 from warp_lamp.kernels.footprint import RAY_OVERLAP, cell_span
-from warp_lamp.kernels.grid import LampGridParams, grid_cell
+from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner
-from warp_lamp.kernels.lamp import LampParticles, clear_particle_counts, frame_sphere, seed_key, walled_loads
+from warp_lamp.kernels.lamp import (
+    LampParticles,
+    clear_particle_counts,
+    frame_sphere,
+    inactive,
+    seed_key,
+    walled_loads,
+)
 from warp_lamp.kernels.porosity import PI, box_cell_volume
 from warp_lamp.kernels.walls import LampWalls
 
@@ -379,6 +386,13 @@ class ReachWindow:
     nj: wp.vec3i
     first: wp.vec3i
     n_cells: wp.int32
+    # Per grid, bounds in frame coordinates relative to the grid's corner [m] inside which a particle's extent
+    # (u - r, u + r, v - r, v + r) cannot reach a cell outside the window (two cells of slack: more than any ray
+    # mode's span and its rounding tolerance); -inf / +inf where the window holds the grid's edge.
+    lo_u: wp.vec3
+    hi_u: wp.vec3
+    lo_v: wp.vec3
+    hi_v: wp.vec3
 
 
 @wp.func
@@ -487,9 +501,24 @@ def dist_escapes(
     # outputs
     escapes: wp.array[wp.int32],
 ):
-    """Counts particle p in ``escapes`` if its footprint left the window. A kernel of its own: inside the seed's
-    threads, which gather owners at random, the same test cost five times its load of 20 bytes per particle."""
+    """Counts particle p in ``escapes`` if its footprint left the window. A particle well inside the window's bounds
+    is passed by comparisons alone; only those near its edge take the exact test (its footprint spans: twelve
+    divisions, which cost 0.5 ms at 27M particles where the loads cost 0.1)."""
     p = wp.tid()
+    if p >= particles.n or inactive(particles, p):
+        return
+    c = grid_to_frame(grid, particles.positions[p])
+    r = particles.radii[p]
+    inside = True
+    for a in range(3):
+        if ((lamp_mask >> (2 * a)) & 3) != 0:
+            pu = c[(a + 1) % 3] - grid.corner_u[a]
+            pv = c[(a + 2) % 3] - grid.corner_v[a]
+            # NaN fails every comparison: such a particle goes to the exact test, which ignores it.
+            if not (pu - r >= win.lo_u[a] and pu + r <= win.hi_u[a] and pv - r >= win.lo_v[a] and pv + r <= win.hi_v[a]):
+                inside = False
+    if inside:
+        return
     if escapes_window(grid, win, particles, p, ray, lamp_mask):
         wp.atomic_add(escapes, 0, 1)
 
