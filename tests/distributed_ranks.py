@@ -44,6 +44,9 @@ class _MPIGlue:
     def library(self) -> str:
         return self.mpi.Get_library_version().splitlines()[0].strip()
 
+    def close(self) -> None:
+        pass
+
 
 class _GlooGlue:
     """The same over torch.distributed's Gloo process group (file store: no TCP port to collide on)."""
@@ -71,6 +74,11 @@ class _GlooGlue:
         import torch
 
         return f"torch {torch.__version__} Gloo"
+
+    def close(self) -> None:
+        # Every rank leaves together: a rank that exits while another still talks to it fails that one's exit.
+        self.dist.barrier()
+        self.dist.destroy_process_group()
 
 
 def main() -> int:
@@ -107,6 +115,7 @@ def main() -> int:
             f"{coll.size} ranks, {len(results)} cases per rank, {summary['failed']} failed, "
             f"{summary['seconds']:.1f} s ({summary['library']})"
         )
+    glue.close()
     return 0 if ok else 1
 
 

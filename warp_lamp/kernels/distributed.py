@@ -515,7 +515,8 @@ def dist_escapes(
             pu = c[(a + 1) % 3] - grid.corner_u[a]
             pv = c[(a + 2) % 3] - grid.corner_v[a]
             # NaN fails every comparison: such a particle goes to the exact test, which ignores it.
-            if not (pu - r >= win.lo_u[a] and pu + r <= win.hi_u[a] and pv - r >= win.lo_v[a] and pv + r <= win.hi_v[a]):
+            in_u = pu - r >= win.lo_u[a] and pu + r <= win.hi_u[a]
+            if not (in_u and pv - r >= win.lo_v[a] and pv + r <= win.hi_v[a]):
                 inside = False
     if inside:
         return
