@@ -398,6 +398,17 @@ def main() -> int:
                 )
                 t1 = base.get("replay_s") or base["eager_s"]
                 e["ratio_to_one_gpu"] = (e["replay_s"] or e["eager_s"]) / t1
+                if k > 1:
+                    # The floor: ShiningLamp on rank 0's share alone, on the same grid and GPU (no communication,
+                    # no reach). What one rank cannot beat; the rest of the ratio is what distributing costs.
+                    share = None
+                    if world.rank == 0:
+                        rows = slab_rows(0, 1, k, 0, centers)
+                        share = reference(centers[rows], radii[rows], grid, device, args.repeats, timed=True)
+                        share = {"n": len(rows), **{k2: v for k2, v in share.items() if k2 != "counts"}}
+                    e["share_on_one_gpu"] = world.bcast(share)
+                    e["share_ratio"] = (e["share_on_one_gpu"].get("replay_s") or e["share_on_one_gpu"]["eager_s"]) / t1
+                    log(f"strong k={k}: ShiningLamp on rank 0's share alone: ratio {e['share_ratio']:.3f}")
                 report["runs"].append(e)
                 save()
                 log(f"strong k={k}: ratio {e['ratio_to_one_gpu']:.3f} bitwise {e['bitwise']}")
@@ -485,6 +496,12 @@ def print_table(report: dict) -> None:
             f"{ms(e['depth_s'])} | {ms(e['to_global_s'])} | {ms(e['reduce_s'])} | {ms(e['scatter_s'])} | "
             f"{'-' if not mem else f'{mem / 2**30:.2f}'} |"
         )
+    for e in report["runs"]:
+        if e.get("share_on_one_gpu"):
+            lines.append(
+                f"floor, {e['gpus']} GPUs: ShiningLamp on rank 0's share alone ({e['share_on_one_gpu']['n']:,}) "
+                f"{e['share_ratio']:.3f} of one GPU; distributed {e['ratio_to_one_gpu']:.3f}"
+            )
     # The README's rows ("Past one GPU", scaling with the reach).
     lines += ["", "README rows:"]
 
