@@ -44,7 +44,7 @@ def scenes(rng):
     yield "dense", rng.uniform(0, 4, (300, 3)), rng.uniform(0.25, 0.42, 300)
 
 
-@pytest.mark.parametrize("depth_slots", [1, 3, 4])
+@pytest.mark.parametrize("depth_slots", [1, 3, 4, 6])
 def test_depth_slots_equal_the_reference_bitwise(device, rng, depth_slots):
     """The D-slot depth pass on the cell corners keeps bitwise the reference's D smallest (depth, id) keys per
     corner ray and lamp, cold and warm-started from other positions, for any split of its work."""
@@ -143,7 +143,7 @@ def test_area_memory_is_checked_before_allocation():
     with pytest.raises(ValueError, match=r"depth_slots: 4 keys per lamp on 30,603 rays need 1,958,592 bytes"):
         wl.ShiningLamp(grid, criterion="area", depth_slots=4, max_bytes=1_000_000, device="cpu")
     for kwargs, match in (
-        ({"depth_slots": 5}, r"depth_slots: expected an integer in \[1, 4\]"),
+        ({"depth_slots": 7}, r"depth_slots: expected an integer in \[1, 6\]"),
         ({"resolver": "fast"}, r"resolver: expected one of"),
         ({"subpoints": 0}, r"subpoints: expected an integer in \[1, 16\]"),
         ({"criterion": "areas"}, r"criterion: expected 0"),
@@ -1089,26 +1089,27 @@ def test_hidden_rounds_equal_the_reference_bitwise(device, rounds):
 
 
 def test_both_lamps_gather_equals_the_reference_bitwise(device):
-    """Seeds gathered from both lamps' keys (with the hidden rounds) give bitwise the reference's sub-point units
-    and overflow count, on a lattice ball, and differ from the one-lamp gather (they act)."""
+    """Seeds gathered from both lamps' keys (with the hidden rounds; 3 and 5 slots) give bitwise the reference's
+    sub-point units and overflow count, on a lattice ball, and differ from the one-lamp gather (they act)."""
     from warp_lamp.scenes import scene_lattice_ball
 
     ball = scene_lattice_ball(diameter=0.03, seed=3)
     c, r = ball.centers, ball.radii
     grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
     pos, rad = device_arrays(grid.to_frame(c), r, device)
-    for rounds in (0, 2):
+    for rounds, d in ((0, 3), (2, 3), (2, 5)):
         ref = area_estimate_reference(
-            c, r, grid, depth_slots=3, resolver="subpoints", _cell_seeds="both", _hidden_rounds=rounds
+            c, r, grid, depth_slots=d, resolver="subpoints", _cell_seeds="both", _hidden_rounds=rounds
         )
-        one = area_estimate_reference(c, r, grid, depth_slots=3, resolver="subpoints", _hidden_rounds=rounds)
-        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=3, device=device)
+        one = area_estimate_reference(c, r, grid, depth_slots=d, resolver="subpoints", _hidden_rounds=rounds)
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", depth_slots=d, device=device)
         lamp.estimator.gather_both = True
         lamp.estimator.hidden_rounds = rounds
         lamp.update(pos, rad, in_frame=True)
         np.testing.assert_array_equal(lamp.counts_numpy(), ref.units)
         assert lamp.diagnostics().area_overflow == ref.stats["overflow"]
-        assert (ref.units != one.units).any()
+        if d == 3:  # five slots of one lamp already hold every sphere of this small ball
+            assert (ref.units != one.units).any()
 
 
 def test_gather_option_sets_the_deep_gather_and_refuses_bad_values():

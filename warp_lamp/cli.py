@@ -192,7 +192,7 @@ _RUN_OPTIONS = [
         ("--depth-slots",),
         "depth_slots",
         None,
-        dict(type=_COUNT, metavar="D", help="--criterion area: spheres kept per corner ray, 1 to 4 (default: 3)"),
+        dict(type=_COUNT, metavar="D", help="--criterion area: spheres kept per corner ray, 1 to 6 (default: 3)"),
     ),
     (
         ("--surfaces",),

@@ -1066,7 +1066,7 @@ class DistributedLamp(ShiningLamp):
             criterion: 0, 1 or ``"area"``, as :class:`~warp_lamp.ShiningLamp`.
             lamps: "all", or names from :data:`~warp_lamp.LAMPS`.
             device: The rank's Warp device (by default the collective's, else Warp's default).
-            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 4.
+            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 6.
             resolver: Area criterion: ``"subpoints"`` or ``"exact"``.
             subpoints: Area criterion, sub-point resolver: points per cell edge, 1 to 16.
             follow: Move the grid with the body by whole cells; the body's box is reduced across ranks (MIN/MAX

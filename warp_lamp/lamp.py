@@ -307,8 +307,8 @@ class ShiningLamp:
                 points: far more accurate per cell than criterion 1 (``README.md``, "The area criterion").
             lamps: "all", or names from :data:`LAMPS`.
             device: Warp device; the current default when None.
-            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 4 (3: dense random packings;
-                4: ordered packings).
+            depth_slots: Area criterion: spheres kept per corner ray and lamp, 1 to 6 (3: dense random packings;
+                4: ordered packings; 5 with the exact resolver and `gather="deep"`: lattice balls within 0.32%).
             resolver: Area criterion: ``"subpoints"`` (each of S x S points of a cell goes to the first sphere that
                 holds it; bitwise the same on CPU and GPU) or ``"exact"`` (circle arcs and cell edges; a last-bit
                 difference of the trigonometry between CPU and GPU may move one unit of 4096 per cell).
@@ -986,7 +986,7 @@ def lamp_forces(
         device: Warp device; by default where warp-array inputs live, else the current default.
         frames: Average over this many fixed lamp frames (``frames.lamp_frame_rotations``), each with its own
             enclosing grid (or ``grid`` turned, :meth:`LampGrid.rotated`); needs an isotropic pressure.
-        depth_slots: Area criterion: spheres kept per corner ray, 1 to 4.
+        depth_slots: Area criterion: spheres kept per corner ray, 1 to 6.
         resolver: Area criterion: ``"subpoints"`` or ``"exact"``.
         subpoints: Area criterion, sub-point resolver: points per cell edge, 1 to 16.
         surfaces: ``"first"`` (the memo's lamp) or ``"all"`` (every wetted surface).

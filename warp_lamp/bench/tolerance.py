@@ -47,6 +47,7 @@ SETTINGS = (
     *[("area", "exact", d, None, k, "front") for d in (3, 4) for k in (2, 3, 4)],
     *[("area", "subpoints", 4, 8, k, "deep") for k in (3, 4)],
     *[("area", "exact", 4, None, k, "deep") for k in (3, 4)],
+    *[("area", "exact", 5, None, k, "deep") for k in (3, 4)],
 )
 #: Tolerances the check asks for.
 CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005)

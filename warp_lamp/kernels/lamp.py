@@ -22,7 +22,7 @@ wp.set_module_options({"enable_backward": False, "fuse_fp": False, "optimization
 DEPTH_BLOCK_DIM = 128
 
 #: Most keys a sample keeps per lamp (``depth_slots``): the first D spheres along its ray.
-MAX_SLOTS = 4
+MAX_SLOTS = 6
 SlotKeys = wp.types.vector(length=MAX_SLOTS, dtype=wp.uint64)
 
 #: Slots of the diagnostics counter array.
