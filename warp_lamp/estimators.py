@@ -601,7 +601,6 @@ class AreaSplit(FirstHit):
             device=d,
         )
 
-
     def _launch_sides(self, shared: list, counts: wp.array) -> None:
         # A thread per (lamp, cell), the undecided lamps' rows of points (``defer``), a payout per cell.
         sides_k, rows_k, payout_k = area_kernels.AREA_SIDES[shared[6]]
