@@ -1212,3 +1212,23 @@ def test_cell_pass_refuses_bad_values_and_counts_its_buffer():
     assert est.nbytes == base
     with pytest.raises(ValueError, match=r"^cell_pass: expected 'cells' or 'sides'"):
         est.cell_pass = "lanes"
+
+
+@pytest.mark.parametrize("subpoints", [1, 3, 4, 8, 12])
+def test_side_pass_subpoints_by_seed_equal_by_point_bitwise(device, subpoints):
+    """The side pass's sub-points seed by seed over a mask of the points taken (S <= 8; S = 12 falls back to point
+    by point) give bitwise the units of point by point and of the one-thread cell pass, on overlapping spheres."""
+    rng = np.random.default_rng(11)
+    c, r = polydisperse_scene(rng, n=150)
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(c), r, device)
+    out = []
+    for cell_pass, rows in (("cells", False), ("sides", False), ("sides", True)):
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", subpoints=subpoints, device=device)
+        lamp.estimator.cell_pass = cell_pass
+        lamp.estimator.subpoint_rows = rows
+        lamp.update(pos, rad, in_frame=True)
+        out.append(lamp.counts_numpy())
+    assert np.abs(out[0]).sum() > 0
+    for got in out[1:]:
+        np.testing.assert_array_equal(got, out[0])

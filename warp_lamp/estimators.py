@@ -421,6 +421,9 @@ class AreaSplit(FirstHit):
         #: below slot D (``bench/experiments/area_gather_study.py``); twice the candidates per cell.
         self.gather_both = False
         self._sides = None
+        #: The side pass's sub-points of a decided cell seed by seed, with a mask of the points taken
+        #: (``kernels/area.py`` ``subpoint_shares_rows``, S <= 8), instead of point by point. Bitwise the same.
+        self.subpoint_rows = True
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
@@ -613,7 +616,7 @@ class AreaSplit(FirstHit):
             seeds, items, count, units = w["seeds"], w["items"], w["count"], w["units"]
             count.zero_()
             units.zero_()
-        inputs = [*shared[:6], self.subpoints, self.unit]
+        inputs = [*shared[:6], self.subpoints, self.unit, int(self.subpoint_rows)]
         wp.launch(
             sides_k,
             dim=2 * self.grid.n_cells,
