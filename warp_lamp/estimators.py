@@ -423,7 +423,7 @@ class AreaSplit(FirstHit):
         self._sides = None
         #: The side pass's sub-points of a decided cell seed by seed, with a mask of the points taken
         #: (``kernels/area.py`` ``subpoint_shares_rows``, S <= 8), instead of point by point. Bitwise the same.
-        self.subpoint_rows = True
+        self.subpoint_rows = self.SUBPOINT_ROWS
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
@@ -461,8 +461,10 @@ class AreaSplit(FirstHit):
                 "units": wp.zeros(2 * w * 16, dtype=wp.int32, device=d),
             }
 
-    #: The cell pass new estimators start with (:attr:`cell_pass`).
+    #: The cell pass new estimators start with (:attr:`cell_pass`), and whether the side pass's sub-points go seed by
+    #: seed (:attr:`subpoint_rows`).
     CELL_PASS = "cells"
+    SUBPOINT_ROWS = True
 
     @property
     def cell_pass(self) -> str:

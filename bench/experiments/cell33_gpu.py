@@ -34,7 +34,18 @@ from warp_lamp.scenes import scene_lattice_box, scene_sphere_specimen
 from warp_lamp.timing import run_header, time_median_events
 
 ROOT = Path(__file__).resolve().parents[2]
-PASSES = ("cells", "sides")
+#: The cell-pass variants timed on every area row: (cell_pass, subpoint_rows, block_dim on CUDA); "cells" is the
+#: shipped pass, the baseline of the bitwise check.
+VARIANTS = {
+    "cells": ("cells", True, 64),
+    "sides": ("sides", False, 64),
+    "sides+rows": ("sides", True, 64),
+    "sides+rows b32": ("sides", True, 32),
+    "sides+rows b128": ("sides", True, 128),
+}
+PASSES = tuple(VARIANTS)
+#: The variants the speed-error table may be re-measured with (the estimator's class defaults can express them).
+TABLE_VARIANTS = ("cells", "sides", "sides+rows")
 _S3 = {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}
 _DEEP = {"criterion": "area", "resolver": "subpoints", "depth_slots": 4, "subpoints": 8, "gather": "deep"}
 _EXACT = {"criterion": "area", "resolver": "exact", "depth_slots": 4}
@@ -63,11 +74,16 @@ def _state(lamp) -> tuple[np.ndarray, tuple]:
     return lamp.counts_numpy().copy(), (d.area_overflow, d.area_one_sided) if hasattr(d, "area_overflow") else ()
 
 
-def measure(scene, grid, options, device, repeats: int, cell_pass: str | None) -> dict:
+def measure(scene, grid, options, device, repeats: int, variant: str | None) -> dict:
     """One setting: update time, cell-pass time (the scatter step alone, replayed), and the counts' hash."""
     lamp = wl.ShiningLamp(grid, device=device, **options)
-    if cell_pass is not None:
+    cell_pass = None
+    if variant is not None:
+        cell_pass, rows, block = VARIANTS[variant]
         lamp.estimator.cell_pass = cell_pass
+        lamp.estimator.subpoint_rows = rows
+        if device.is_cuda:
+            lamp.estimator.block_dim = block
     pos, rad = _arrays(scene, grid, device)
     lamp.update(pos, rad, in_frame=True)
     counts, diag = _state(lamp)
@@ -110,13 +126,18 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool, log) -> list[d
             log(f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms")
         else:
             res = {p: measure(scene, grid, opts, device, repeats, p) for p in PASSES}
-            a, b = res["cells"], res["sides"]
-            row["bitwise"] = bool(np.array_equal(a.pop("_counts"), b.pop("_counts")) and a["diag"] == b["diag"])
+            base = res["cells"]["_counts"]
+            row["bitwise"] = all(
+                np.array_equal(v["_counts"], base) and v["diag"] == res["cells"]["diag"] for v in res.values()
+            )
+            for v in res.values():
+                v.pop("_counts")
             row["passes"] = res
+            cells = " / ".join(f"{res[p]['cells_s'] * 1e3:.3f}" for p in PASSES)
             log(
-                f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {a['update_s'] * 1e3:8.3f} -> "
-                f"{b['update_s'] * 1e3:8.3f} ms  cells {a['cells_s'] * 1e3:8.3f} -> {b['cells_s'] * 1e3:8.3f} ms  "
-                f"bitwise {row['bitwise']}  stable {a['stable'] and b['stable']}"
+                f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {res['cells']['update_s'] * 1e3:8.3f} -> "
+                f"{res['sides+rows']['update_s'] * 1e3:8.3f} ms; cell pass {cells} ms ({' / '.join(PASSES)})  "
+                f"bitwise {row['bitwise']}  stable {all(v['stable'] for v in res.values())}"
             )
         rows.append(row)
     for r in rows:
@@ -132,31 +153,36 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool, log) -> list[d
 
 
 def faster_pass(rows) -> str:
-    """The pass with the smaller update times over the specimen's sub-point rows (the geometric mean of the ratios:
-    the exact rows, ten times slower, are never the cheapest choice of ``tolerance=``; ties: the shipped one)."""
-    r = [
-        np.log(x["passes"]["sides"]["update_s"] / x["passes"]["cells"]["update_s"])
-        for x in rows
-        if "passes" in x and x["scene"] == "specimen" and x["options"]["resolver"] == "subpoints"
-    ]
-    return "sides" if r and float(np.mean(r)) < 0.0 else "cells"
+    """Among :data:`TABLE_VARIANTS`, the one with the smallest update times over the specimen's sub-point rows (the
+    geometric mean of the ratios to the shipped pass: the exact rows, ten times slower, are never the cheapest
+    choice of ``tolerance=``; ties: the shipped one)."""
+    sub = [x for x in rows if "passes" in x and x["scene"] == "specimen" and x["options"]["resolver"] == "subpoints"]
+    if not sub:
+        return "cells"
+    score = {
+        v: float(np.mean([np.log(x["passes"][v]["update_s"] / x["passes"]["cells"]["update_s"]) for x in sub]))
+        for v in TABLE_VARIANTS
+    }
+    return min(TABLE_VARIANTS, key=lambda v: (score[v], v != "cells"))
 
 
-def table_with(cell_pass: str, device, repeats: int) -> dict:
-    """The shipped speed-error table with this kind's times re-measured under ``cell_pass``, and the choices."""
+def table_with(variant: str, device, repeats: int) -> dict:
+    """The shipped speed-error table with this kind's times re-measured with a cell-pass ``variant``, and the
+    choices of ``tolerance=`` with the shipped table and with this one."""
     from warp_lamp.bench.tolerance import _kind_of, merge_kind
     from warp_lamp.tolerance import TABLE_PATH, choose_settings
 
     with open(TABLE_PATH, encoding="utf-8") as f:
         shipped = json.load(f)
-    keep = AreaSplit.CELL_PASS
-    AreaSplit.CELL_PASS = cell_pass
+    keep = AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS
+    AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS = VARIANTS[variant][:2]
     try:
         table = merge_kind(copy.deepcopy(shipped), device, repeats=repeats)
     finally:
-        AreaSplit.CELL_PASS = keep
+        AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS = keep
     kind = _kind_of(device)
-    table["kinds"][kind]["cell_pass"] = cell_pass
+    table["kinds"][kind]["cell_pass"] = VARIANTS[variant][0]
+    table["kinds"][kind]["subpoint_rows"] = VARIANTS[variant][1]
     choices = {}
     for tol in (0.02, 0.01, 0.005):
         for name, t in (("shipped", shipped), ("candidate", table)):
@@ -211,7 +237,7 @@ def main(argv=None) -> int:
     out["faster_pass"] = faster_pass(out["rows"])
     save()
     if args.table and time.perf_counter() - t_start < args.budget:
-        log(f"speed-error table with cell_pass={out['faster_pass']!r}")
+        log(f"speed-error table with the variant {out['faster_pass']!r}: {VARIANTS[out['faster_pass']]}")
         tol = table_with(out["faster_pass"], device, 1 if args.quick else 5)
         with open(args.table, "w", encoding="utf-8") as f:
             json.dump(tol["table"], f, indent=1)
@@ -229,23 +255,17 @@ def main(argv=None) -> int:
         out["tests"] = run_tests(device, args.tests_limit)
         log("tests: rc " + str(out["tests"]["rc"]) + " | " + " / ".join(out["tests"]["tail"][-2:]))
         save()
-    print("\n| scene | setting | cells/d | update ms cells -> sides | cell pass ms | x crit. 1 at 4 | bitwise |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print(f"\nupdate ms (x criterion 1 at 4) per variant: {' | '.join(PASSES)}; then the cell pass alone")
     for r in out["rows"]:
+        head = f"| {r['scene']} | {r['setting']} | {r['cells_per_diameter']} |"
         if "passes" in r:
-            a, b = r["passes"]["cells"], r["passes"]["sides"]
-            print(
-                f"| {r['scene']} | {r['setting']} | {r['cells_per_diameter']} | {a['update_s'] * 1e3:.3f} -> "
-                f"{b['update_s'] * 1e3:.3f} | {a['cells_s'] * 1e3:.3f} -> {b['cells_s'] * 1e3:.3f} | "
-                f"{r.get('ratio', {}).get('cells', float('nan')):.1f} -> "
-                f"{r.get('ratio', {}).get('sides', float('nan')):.1f}"
-                f" | {r['bitwise']} |"
-            )
+            ratio = r.get("ratio", {})
+            nan = float("nan")
+            ups = " | ".join(f"{r['passes'][p]['update_s'] * 1e3:.3f} ({ratio.get(p, nan):.1f})" for p in PASSES)
+            cps = " | ".join(f"{r['passes'][p]['cells_s'] * 1e3:.3f}" for p in PASSES)
+            print(f"{head} {ups} || {cps} | bitwise {r['bitwise']} |")
         else:
-            print(
-                f"| {r['scene']} | {r['setting']} | {r['cells_per_diameter']} | {r['update_s'] * 1e3:.3f} | | "
-                f"{r.get('ratio', float('nan')):.1f} | |"
-            )
+            print(f"{head} {r['update_s'] * 1e3:.3f} ({r.get('ratio', float('nan')):.1f}) |")
     if isinstance(out.get("choices"), dict):
         for k, v in out["choices"].items():
             print(f"{k}: {v}")
