@@ -9,4 +9,4 @@
 OUT="${OUT:-/tmp/out}"
 mkdir -p "$OUT"
 python3 bench/experiments/cell33_gpu.py --device "${CELL33_DEVICE:-cuda:0}" --json "$OUT/cell33.json" \
-  --table "$OUT/cell33_table.json" --repeats 30 --budget 240 --tests-limit 90 2>&1 | grep -v "^Module " | tail -40
+  --table "$OUT/cell33_table.json" --repeats 30 --budget 240 --tests-limit 150 2>&1 | grep -v "^Module " | tail -40
