@@ -1232,3 +1232,29 @@ def test_side_pass_subpoints_by_seed_equal_by_point_bitwise(device, subpoints):
     assert np.abs(out[0]).sum() > 0
     for got in out[1:]:
         np.testing.assert_array_equal(got, out[0])
+
+
+def test_hidden_rounds_from_kept_keys_equal_from_emptied_slots(device):
+    """Hidden rounds whose depth pass starts from the previous keys less the flagged spheres' (``hidden_warm``)
+    leave bitwise the keys, units and counters of rounds from emptied slots, on a lattice ball with both lamps'
+    gather, over two updates (the second seeded by the first)."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    grid = wl.LampGrid.enclosing(ball.centers, ball.radii, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(ball.centers), ball.radii, device)
+    out = []
+    for warm in (False, True):
+        lamp = wl.ShiningLamp(grid, criterion="area", depth_slots=4, gather="deep", device=device)
+        lamp.estimator.hidden_warm = warm
+        got = []
+        for _ in range(2):
+            lamp.update(pos, rad, in_frame=True)
+            d = lamp.diagnostics()
+            got.append((lamp.keys.numpy().copy(), lamp.counts_numpy(), d.area_overflow, d.invalid))
+        out.append(got)
+    for (k0, c0, o0, i0), (k1, c1, o1, i1) in zip(*out, strict=True):
+        np.testing.assert_array_equal(k1, k0)
+        np.testing.assert_array_equal(c1, c0)
+        assert (o1, i1) == (o0, i0)
+    assert np.abs(out[0][0][1]).sum() > 0

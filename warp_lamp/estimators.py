@@ -424,6 +424,9 @@ class AreaSplit(FirstHit):
         #: The side pass's sub-points of a decided cell seed by seed, with a mask of the points taken
         #: (``kernels/area.py`` ``subpoint_shares_rows``, S <= 8), instead of point by point. Bitwise the same.
         self.subpoint_rows = self.SUBPOINT_ROWS
+        #: Each hidden round's depth pass starts from the previous keys less the flagged spheres' (``area_unhide``)
+        #: instead of emptied slots (every offer then a chain of atomics). Bitwise the same keys.
+        self.hidden_warm = True
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
@@ -537,7 +540,18 @@ class AreaSplit(FirstHit):
                 outputs=[flags],
                 device=d,
             )
-            self.keys.fill_(_EMPTY)
+            if self.hidden_warm:
+                # The flagged spheres' keys out, the rest kept: the rerun finds its lists nearly full (bitwise the
+                # same keys as from emptied slots, ``area_unhide``).
+                wp.launch(
+                    area_kernels.area_unhide,
+                    dim=self.keys.shape[0] // self.depth_slots,
+                    inputs=[self._rays().offset, self.depth_slots, flags],
+                    outputs=[self.keys],
+                    device=d,
+                )
+            else:
+                self.keys.fill_(_EMPTY)
             # The rerun counts invalid and outside particles again: into a scratch copy.
             self._hidden_flags = flags
             self._depth_diag = self._hidden_diag

@@ -1355,3 +1355,39 @@ def area_hidden(
                 if e < rh and zb - rb > zh - wp.sqrt(wp.max(rh * rh - e * e, 0.0)):
                     bits = bits | bit
     hidden[b] = bits
+
+
+@wp.kernel
+def area_unhide(
+    sample_offset: wp.vec3i,
+    depth_slots: wp.int32,
+    hidden: wp.array[wp.int32],
+    # outputs
+    keys: wp.array[wp.uint64],
+):
+    """One thread per (corner sample, lamp side): drop from its D-slot list the keys of the spheres ``hidden`` flags
+    for that lamp, the rest moved up in order and EMPTY_KEY after them. What stays is a prefix of the D smallest keys
+    the flagged spheres leave (the list held the D smallest of all), so a depth pass that offers every sphere but
+    the flagged ones over it ends with the same D keys as one over emptied slots (``offer_slots`` keeps a key once),
+    while the offers that cannot enter cost a load instead of a chain of atomics."""
+    t = wp.tid()
+    s = t / 2
+    side = t - 2 * s
+    a = int(0)
+    if s >= sample_offset[2]:
+        a = 2
+    elif s >= sample_offset[1]:
+        a = 1
+    bit = 1 << (2 * a + side)
+    base = t * depth_slots
+    kept = int(0)
+    for k in range(depth_slots):
+        key = keys[base + k]
+        if key == EMPTY_KEY:
+            break
+        if (hidden[key_owner(key)] & bit) == 0:
+            if kept != k:
+                keys[base + kept] = key
+            kept += 1
+    for k in range(kept, depth_slots):
+        keys[base + k] = EMPTY_KEY
