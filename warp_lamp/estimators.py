@@ -426,7 +426,7 @@ class AreaSplit(FirstHit):
         self.subpoint_rows = self.SUBPOINT_ROWS
         #: Each hidden round's depth pass starts from the previous keys less the flagged spheres' (``area_unhide``)
         #: instead of emptied slots (every offer then a chain of atomics). Bitwise the same keys.
-        self.hidden_warm = True
+        self.hidden_warm = self.HIDDEN_WARM
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
@@ -468,6 +468,8 @@ class AreaSplit(FirstHit):
     #: seed (:attr:`subpoint_rows`).
     CELL_PASS = "cells"
     SUBPOINT_ROWS = True
+    #: Whether new estimators' hidden rounds start from the kept keys (:attr:`hidden_warm`).
+    HIDDEN_WARM = True
 
     @property
     def cell_pass(self) -> str:

@@ -1,5 +1,6 @@
 """The area criterion's cell pass, one thread per cell (``cell_pass="cells"``, shipped) against one thread per
-(lamp, cell) (``"sides"``), in one run on one device: update and cell-pass times (graph replay on CUDA), and
+(lamp, cell) (``"sides"``), and hidden rounds from emptied slots against the kept keys (``hidden_warm``), in one run
+on one device: update and cell-pass times (graph replay on CUDA), and
 whether the two give bitwise the same counts and counters. Then, with the faster pass, the speed-error table's
 times for this device kind merged into the shipped table (a candidate for ``warp_lamp/data/speed_error.json``) and
 what ``tolerance=`` would choose with it.
@@ -7,7 +8,7 @@ what ``tolerance=`` would choose with it.
 Rows: the SphereTest specimen at 3 and 4 cells per diameter with sub-points D = 3, sub-points D = 4 with the deep
 gather (the table's only sub-point rows eligible for a 1% tolerance) and the exact resolver D = 4; criterion 1 at
 4 and 32 cells per diameter for the ratios; the 1M lattice box (cells of 0.25 diameters) with criterion 1 and
-sub-points D = 3 (CUDA, or ``--large``).
+sub-points D = 3 and D = 4 deep (CUDA, or ``--large``).
 
     python bench/experiments/cell33_gpu.py --device cuda:0 --json $OUT/cell33.json --table $OUT/cell33_table.json
     python bench/experiments/cell33_gpu.py --device cpu --quick --json /tmp/c.json --table /tmp/t.json   # dry run
@@ -34,18 +35,19 @@ from warp_lamp.scenes import scene_lattice_box, scene_sphere_specimen
 from warp_lamp.timing import run_header, time_median_events
 
 ROOT = Path(__file__).resolve().parents[2]
-#: The cell-pass variants timed on every area row: (cell_pass, subpoint_rows, block_dim on CUDA); "cells" is the
-#: shipped pass, the baseline of the bitwise check.
+#: The variants timed on every area row: (cell_pass, subpoint_rows, block_dim on CUDA, hidden_warm). "old" is the
+#: code before this branch (one thread per cell, hidden rounds from emptied slots), the baseline of the bitwise check.
 VARIANTS = {
-    "cells": ("cells", True, 64),
-    "sides": ("sides", False, 64),
-    "sides+rows": ("sides", True, 64),
-    "sides+rows b32": ("sides", True, 32),
-    "sides+rows b128": ("sides", True, 128),
+    "old": ("cells", True, 64, False),
+    "warm": ("cells", True, 64, True),
+    "sides": ("sides", False, 64, True),
+    "sides+rows": ("sides", True, 64, True),
+    "sides+rows b32": ("sides", True, 32, True),
+    "sides+rows b128": ("sides", True, 128, True),
 }
 PASSES = tuple(VARIANTS)
 #: The variants the speed-error table may be re-measured with (the estimator's class defaults can express them).
-TABLE_VARIANTS = ("cells", "sides", "sides+rows")
+TABLE_VARIANTS = ("old", "warm", "sides", "sides+rows")
 _S3 = {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}
 _DEEP = {"criterion": "area", "resolver": "subpoints", "depth_slots": 4, "subpoints": 8, "gather": "deep"}
 _EXACT = {"criterion": "area", "resolver": "exact", "depth_slots": 4}
@@ -79,9 +81,10 @@ def measure(scene, grid, options, device, repeats: int, variant: str | None) -> 
     lamp = wl.ShiningLamp(grid, device=device, **options)
     cell_pass = None
     if variant is not None:
-        cell_pass, rows, block = VARIANTS[variant]
+        cell_pass, rows, block, warm = VARIANTS[variant]
         lamp.estimator.cell_pass = cell_pass
         lamp.estimator.subpoint_rows = rows
+        lamp.estimator.hidden_warm = warm
         if device.is_cuda:
             lamp.estimator.block_dim = block
     pos, rad = _arrays(scene, grid, device)
@@ -110,6 +113,7 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool, log) -> list[d
     if large:
         box = scene_lattice_box(100)
         plan += [("lattice 1M", box, 4, "criterion 1", {"criterion": 1}), ("lattice 1M", box, 4, "sub-points D3", _S3)]
+        plan += [("lattice 1M", box, 4, "sub-points D4 deep", _DEEP)]
     grids = {}
     for scene_name, scene, k, label, opts in plan:
         key = (scene_name, k)
@@ -126,16 +130,16 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool, log) -> list[d
             log(f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {row['update_s'] * 1e3:8.3f} ms")
         else:
             res = {p: measure(scene, grid, opts, device, repeats, p) for p in PASSES}
-            base = res["cells"]["_counts"]
+            base = res["old"]["_counts"]
             row["bitwise"] = all(
-                np.array_equal(v["_counts"], base) and v["diag"] == res["cells"]["diag"] for v in res.values()
+                np.array_equal(v["_counts"], base) and v["diag"] == res["old"]["diag"] for v in res.values()
             )
             for v in res.values():
                 v.pop("_counts")
             row["passes"] = res
             cells = " / ".join(f"{res[p]['cells_s'] * 1e3:.3f}" for p in PASSES)
             log(
-                f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {res['cells']['update_s'] * 1e3:8.3f} -> "
+                f"{scene_name:<11} {label:<20} {k:>3} cells/d  update {res['old']['update_s'] * 1e3:8.3f} -> "
                 f"{res['sides+rows']['update_s'] * 1e3:8.3f} ms; cell pass {cells} ms ({' / '.join(PASSES)})  "
                 f"bitwise {row['bitwise']}  stable {all(v['stable'] for v in res.values())}"
             )
@@ -158,12 +162,12 @@ def faster_pass(rows) -> str:
     choice of ``tolerance=``; ties: the shipped one)."""
     sub = [x for x in rows if "passes" in x and x["scene"] == "specimen" and x["options"]["resolver"] == "subpoints"]
     if not sub:
-        return "cells"
+        return "old"
     score = {
-        v: float(np.mean([np.log(x["passes"][v]["update_s"] / x["passes"]["cells"]["update_s"]) for x in sub]))
+        v: float(np.mean([np.log(x["passes"][v]["update_s"] / x["passes"]["old"]["update_s"]) for x in sub]))
         for v in TABLE_VARIANTS
     }
-    return min(TABLE_VARIANTS, key=lambda v: (score[v], v != "cells"))
+    return min(TABLE_VARIANTS, key=lambda v: (score[v], v != "old"))
 
 
 def table_with(variant: str, device, repeats: int) -> dict:
@@ -174,15 +178,15 @@ def table_with(variant: str, device, repeats: int) -> dict:
 
     with open(TABLE_PATH, encoding="utf-8") as f:
         shipped = json.load(f)
-    keep = AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS
-    AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS = VARIANTS[variant][:2]
+    keep = AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS, AreaSplit.HIDDEN_WARM
+    cell_pass, rows, _block, warm = VARIANTS[variant]
+    AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS, AreaSplit.HIDDEN_WARM = cell_pass, rows, warm
     try:
         table = merge_kind(copy.deepcopy(shipped), device, repeats=repeats)
     finally:
-        AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS = keep
+        AreaSplit.CELL_PASS, AreaSplit.SUBPOINT_ROWS, AreaSplit.HIDDEN_WARM = keep
     kind = _kind_of(device)
-    table["kinds"][kind]["cell_pass"] = VARIANTS[variant][0]
-    table["kinds"][kind]["subpoint_rows"] = VARIANTS[variant][1]
+    table["kinds"][kind].update(cell_pass=cell_pass, subpoint_rows=rows, hidden_warm=warm)
     choices = {}
     for tol in (0.02, 0.01, 0.005):
         for name, t in (("shipped", shipped), ("candidate", table)):
