@@ -1126,3 +1126,136 @@ def test_gather_option_sets_the_deep_gather_and_refuses_bad_values():
         wl.ShiningLamp(grid, criterion="area", gather="all", device="cpu")
     with pytest.raises(ValueError, match=r"^gather: 'deep' is the area criterion's"):
         wl.ShiningLamp(grid, criterion=1, gather="deep", device="cpu")
+
+
+def _side_pass_cases(rng):
+    """(name, centres, radii, cells per diameter, lamp options, estimator settings): random overlapping spheres, a
+    packing whose spheres overlap by up to 30% (many undecided cells), the lattice ball with the deep gather, and
+    a lamp subset with inactive particles."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    c, r = polydisperse_scene(rng, n=150)
+    yield "random", c, r, 4, {}, {}
+    s = scene_overlapping_polydisperse(n=300)
+    yield "overlapping", s.centers, s.radii, 3, {}, {}
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    yield "lattice ball deep", ball.centers, ball.radii, 4, {"depth_slots": 4}, {"hidden_rounds": 2, "gather_both": 1}
+    active = rng.random(150) > 0.3
+    yield "subset", c, r, 3, {"lamps": ["-x", "+x", "+y", "-z"], "active": active}, {}
+
+
+@pytest.mark.parametrize("resolver", ["subpoints", "exact"])
+def test_side_pass_equals_the_cell_pass_bitwise(device, rng, resolver):
+    """A thread per (lamp, cell) (``cell_pass="sides"``), with and without the work list of undecided lamps (and
+    with one too small for them), gives bitwise the counts and counters of one thread per cell, on overlapping,
+    lattice-ball (deep gather), subset and inactive cases; the sub-points also equal the reference unit for unit."""
+    for name, c, r, cpd, opts, est in _side_pass_cases(rng):
+        if resolver == "exact" and name == "lattice ball deep":
+            continue  # the same gather as the sub-points': only the resolver differs, as in "overlapping"
+        opts = dict(opts)
+        active = opts.pop("active", None)
+        grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=cpd)
+        pos, rad = device_arrays(grid.to_frame(c), r, device)
+        act = None if active is None else wp.array(active.astype(np.int32), dtype=wp.int32, device=device)
+        out = {}
+        for cell_pass in ("cells", "sides"):
+            for defer in (False, True, "small"):
+                lamp = wl.ShiningLamp(grid, criterion="area", resolver=resolver, device=device, **opts)
+                lamp.estimator.hidden_rounds = est.get("hidden_rounds", 0)
+                lamp.estimator.gather_both = bool(est.get("gather_both", False))
+                lamp.estimator.defer = bool(defer)
+                if defer == "small":
+                    # Room for 64 cells (128 lamps): past it the thread resolves its lamp itself.
+                    keep = lamp.estimator.WORK_FRACTION
+                    lamp.estimator.defer = False
+                    lamp.estimator.WORK_FRACTION = grid.n_cells
+                    lamp.estimator.defer = True
+                    lamp.estimator.WORK_FRACTION = keep
+                lamp.estimator.cell_pass = cell_pass
+                assert lamp.estimator.cell_pass == cell_pass
+                lamp.update(pos, rad, in_frame=True, active=act)
+                d = lamp.diagnostics()
+                out[cell_pass, defer] = (lamp.counts_numpy(), d.area_overflow, d.area_one_sided)
+                if defer == "small" and name == "overlapping" and cell_pass == "sides":
+                    asked = int(lamp.estimator._work["count"].numpy()[0])
+                    assert asked > lamp.estimator._work["seeds"].shape[0]  # both paths ran
+        want = out["cells", False]
+        assert np.abs(want[0]).sum() > 0
+        for key, got in out.items():
+            np.testing.assert_array_equal(got[0], want[0], err_msg=f"{name} {key}")
+            assert got[1:] == want[1:], (name, key)
+        if resolver == "subpoints":
+            ref = area_estimate_reference(
+                c,
+                r,
+                grid,
+                resolver="subpoints",
+                depth_slots=opts.get("depth_slots", 3),
+                lamps=opts.get("lamps", "all"),
+                active=active,
+                _cell_seeds="both" if est.get("gather_both") else "side",
+                _hidden_rounds=est.get("hidden_rounds", 0),
+            )
+            np.testing.assert_array_equal(out["sides", True][0], ref.units, err_msg=name)
+
+
+def test_cell_pass_refuses_bad_values_and_counts_its_buffer():
+    """``cell_pass`` takes "cells" or "sides" only, naming itself otherwise; the side pass's buffer (144 bytes per
+    lamp and cell) is in ``nbytes`` and leaves it when switched off."""
+    c = np.array([[0.0, 0.0, 0.0], [0.3, 0.1, 0.2]])
+    r = np.array([0.25, 0.2])
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    est = wl.ShiningLamp(grid, criterion="area", device="cpu").estimator
+    base = est.nbytes
+    est.cell_pass = "sides"
+    assert est.nbytes == base + 2 * grid.n_cells * 144
+    est.cell_pass = "cells"
+    assert est.nbytes == base
+    with pytest.raises(ValueError, match=r"^cell_pass: expected 'cells' or 'sides'"):
+        est.cell_pass = "lanes"
+
+
+@pytest.mark.parametrize("subpoints", [1, 3, 4, 8, 12])
+def test_side_pass_subpoints_by_seed_equal_by_point_bitwise(device, subpoints):
+    """The side pass's sub-points seed by seed over a mask of the points taken (S <= 8; S = 12 falls back to point
+    by point) give bitwise the units of point by point and of the one-thread cell pass, on overlapping spheres."""
+    rng = np.random.default_rng(11)
+    c, r = polydisperse_scene(rng, n=150)
+    grid = wl.LampGrid.enclosing(c, r, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(c), r, device)
+    out = []
+    for cell_pass, rows in (("cells", False), ("sides", False), ("sides", True)):
+        lamp = wl.ShiningLamp(grid, criterion="area", resolver="subpoints", subpoints=subpoints, device=device)
+        lamp.estimator.cell_pass = cell_pass
+        lamp.estimator.subpoint_rows = rows
+        lamp.update(pos, rad, in_frame=True)
+        out.append(lamp.counts_numpy())
+    assert np.abs(out[0]).sum() > 0
+    for got in out[1:]:
+        np.testing.assert_array_equal(got, out[0])
+
+
+def test_hidden_rounds_from_kept_keys_equal_from_emptied_slots(device):
+    """Hidden rounds whose depth pass starts from the previous keys less the flagged spheres' (``hidden_warm``)
+    leave bitwise the keys, units and counters of rounds from emptied slots, on a lattice ball with both lamps'
+    gather, over two updates (the second seeded by the first)."""
+    from warp_lamp.scenes import scene_lattice_ball
+
+    ball = scene_lattice_ball(diameter=0.03, seed=3)
+    grid = wl.LampGrid.enclosing(ball.centers, ball.radii, cells_per_diameter=4)
+    pos, rad = device_arrays(grid.to_frame(ball.centers), ball.radii, device)
+    out = []
+    for warm in (False, True):
+        lamp = wl.ShiningLamp(grid, criterion="area", depth_slots=4, gather="deep", device=device)
+        lamp.estimator.hidden_warm = warm
+        got = []
+        for _ in range(2):
+            lamp.update(pos, rad, in_frame=True)
+            d = lamp.diagnostics()
+            got.append((lamp.keys.numpy().copy(), lamp.counts_numpy(), d.area_overflow, d.invalid))
+        out.append(got)
+    for (k0, c0, o0, i0), (k1, c1, o1, i1) in zip(*out, strict=True):
+        np.testing.assert_array_equal(k1, k0)
+        np.testing.assert_array_equal(c1, c0)
+        assert (o1, i1) == (o0, i0)
+    assert np.abs(out[0][0][1]).sum() > 0

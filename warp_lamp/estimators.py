@@ -420,10 +420,18 @@ class AreaSplit(FirstHit):
         #: spheres along a corner ray are candidates too, which on a small body reaches the spheres buried
         #: below slot D (``bench/experiments/area_gather_study.py``); twice the candidates per cell.
         self.gather_both = False
+        self._sides = None
+        #: The side pass's sub-points of a decided cell seed by seed, with a mask of the points taken
+        #: (``kernels/area.py`` ``subpoint_shares_rows``, S <= 8), instead of point by point. Bitwise the same.
+        self.subpoint_rows = self.SUBPOINT_ROWS
+        #: Each hidden round's depth pass starts from the previous keys less the flagged spheres' (``area_unhide``)
+        #: instead of emptied slots (every offer then a chain of atomics). Bitwise the same keys.
+        self.hidden_warm = self.HIDDEN_WARM
         if self.device.is_cuda:
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
             self.defer = True
+        self.cell_pass = self.CELL_PASS
 
     #: Deferred cells per cell of the grid: a cell whose order is undecided somewhere (1.4% of the SphereTest
     #: specimen's cell-lamps at 4 cells per diameter, a quarter of a strongly overlapping packing's) waits in a work
@@ -450,9 +458,40 @@ class AreaSplit(FirstHit):
                 "seeds": wp.zeros(2 * w, dtype=SeedList, device=d),
                 "shares": wp.zeros(2 * w, dtype=SideShares, device=d),
                 "cells": wp.zeros(w, dtype=wp.int32, device=d),
+                # The side pass's items: (lamp, cell) thread ids, one per undecided lamp (2 w of them).
+                "items": wp.zeros(2 * w, dtype=wp.int32, device=d),
                 "count": wp.zeros(1, dtype=wp.int32, device=d),
                 "units": wp.zeros(2 * w * 16, dtype=wp.int32, device=d),
             }
+
+    #: The cell pass new estimators start with (:attr:`cell_pass`), and whether the side pass's sub-points go seed by
+    #: seed (:attr:`subpoint_rows`).
+    CELL_PASS = "cells"
+    SUBPOINT_ROWS = True
+    #: Whether new estimators' hidden rounds start from the kept keys (:attr:`hidden_warm`).
+    HIDDEN_WARM = True
+
+    @property
+    def cell_pass(self) -> str:
+        """How the cell pass spreads over threads: ``"cells"``, one thread per cell running both lamps, or
+        ``"sides"``, one thread per (lamp, cell) and a light kernel per cell that pays both lamps out (twice the
+        threads, each with half the work; ``kernels/area.py`` ``_side_kernels``; a buffer of 144 bytes per
+        (lamp, cell)). Bitwise the same result."""
+        return "sides" if self._sides is not None else "cells"
+
+    @cell_pass.setter
+    def cell_pass(self, kind: str) -> None:
+        if kind not in ("cells", "sides"):
+            raise ValueError(f"cell_pass: expected 'cells' or 'sides', got {kind!r}")
+        if kind == self.cell_pass:
+            return
+        self.nbytes -= self._sides.capacity if self._sides is not None else 0
+        self._sides = None
+        if kind == "sides":
+            from warp_lamp.kernels.area import SideShares
+
+            self._sides = wp.zeros(2 * self.grid.n_cells, dtype=SideShares, device=self.device)
+            self.nbytes += self._sides.capacity
 
     @property
     def hidden_rounds(self) -> int:
@@ -503,7 +542,18 @@ class AreaSplit(FirstHit):
                 outputs=[flags],
                 device=d,
             )
-            self.keys.fill_(_EMPTY)
+            if self.hidden_warm:
+                # The flagged spheres' keys out, the rest kept: the rerun finds its lists nearly full (bitwise the
+                # same keys as from emptied slots, ``area_unhide``).
+                wp.launch(
+                    area_kernels.area_unhide,
+                    dim=self.keys.shape[0] // self.depth_slots,
+                    inputs=[self._rays().offset, self.depth_slots, flags],
+                    outputs=[self.keys],
+                    device=d,
+                )
+            else:
+                self.keys.fill_(_EMPTY)
             # The rerun counts invalid and outside particles again: into a scratch copy.
             self._hidden_flags = flags
             self._depth_diag = self._hidden_diag
@@ -531,6 +581,9 @@ class AreaSplit(FirstHit):
             self.subpoints,
             self.unit,
         ]
+        if self._sides is not None:
+            self._launch_sides(shared, counts)
+            return
         if self._work is not None:
             self._launch_deferred(shared, counts)
             return
@@ -568,6 +621,58 @@ class AreaSplit(FirstHit):
             outputs=[counts, self.diag[2:]],
             device=d,
         )
+
+    def _launch_sides(self, shared: list, counts: wp.array) -> None:
+        # A thread per (lamp, cell), the undecided lamps' rows of points (``defer``), a payout per cell.
+        sides_k, rows_k, payout_k = area_kernels.AREA_SIDES[shared[6]]
+        d = self.device
+        w = self._work
+        if w is None:
+            # No work list: every lamp is resolved by its own thread.
+            seeds, items, count, units = self._no_work()
+        else:
+            seeds, items, count, units = w["seeds"], w["items"], w["count"], w["units"]
+            count.zero_()
+            units.zero_()
+        inputs = [*shared[:6], self.subpoints, self.unit, int(self.subpoint_rows)]
+        wp.launch(
+            sides_k,
+            dim=2 * self.grid.n_cells,
+            inputs=inputs,
+            outputs=[self._sides, seeds, items, count],
+            device=d,
+            block_dim=self.block_dim,
+        )
+        if w is not None:
+            rows = self.subpoints if self.resolver == "subpoints" else int(area_kernels.RASTER)
+            wp.launch(
+                rows_k,
+                dim=seeds.shape[0] * rows,
+                inputs=[shared[0], seeds, items, count, self.subpoints],
+                outputs=[units],
+                device=d,
+            )
+        wp.launch(
+            payout_k,
+            dim=self.grid.n_cells,
+            inputs=[shared[0], self._sides, units, self.lamp_mask, self.unit],
+            outputs=[counts, self.diag[2:]],
+            device=d,
+        )
+
+    def _no_work(self):
+        # Empty work-list arrays for the side pass without ``defer`` (made once: no allocation in a capture).
+        if getattr(self, "_empty_work", None) is None:
+            from warp_lamp.kernels.area import SeedList
+
+            d = self.device
+            self._empty_work = (
+                wp.empty(0, dtype=SeedList, device=d),
+                wp.empty(0, dtype=wp.int32, device=d),
+                wp.zeros(1, dtype=wp.int32, device=d),
+                wp.empty(0, dtype=wp.int32, device=d),
+            )
+        return self._empty_work
 
 
 class WettedCrossings(Estimator):

@@ -150,7 +150,7 @@ def timed_rows(device, repeats: int, *, large: bool, quick: bool) -> list[dict]:
 def tolerance_table(device, repeats: int) -> dict:
     """The shipped speed-error table with this device kind's times merged in (``merge_kind``), and the choices
     of ``tolerance=`` for this kind (errors: the table's)."""
-    from warp_lamp.bench_tolerance import merge_kind
+    from warp_lamp.bench.tolerance import merge_kind
     from warp_lamp.tolerance import TABLE_PATH, choose_settings
 
     with open(TABLE_PATH, encoding="utf-8") as f:

@@ -402,6 +402,52 @@ def subpoint_shares(
 
 
 @wp.func
+def subpoint_shares_rows(
+    ox: vec_seed_f, oy: vec_seed_f, rr: vec_seed_f, full: wp.int32, count: wp.int32, hu: float, hv: float, s: int
+) -> vec_seed_f:
+    """``subpoint_shares`` of a decided cell (each point to the first seed whose disk holds it), seed by seed instead
+    of point by point, for s <= 8: a 64-bit mask of the points already taken; a row of points whose squared distance
+    along u alone exceeds r^2 is skipped (adding dy^2 >= 0 rounds to no less), as is a row already taken. The same
+    float32 tests on the same points, so the same points per seed: bitwise ``subpoint_shares``'s shares."""
+    shares = vec_seed_f()
+    if count == 1 and full == 0:
+        shares[0] = float(s * s)
+        return shares
+    su = hu / float(s)
+    sv = hv / float(s)
+    row_bits = (wp.uint64(1) << wp.uint64(s)) - wp.uint64(1)
+    taken = wp.uint64(0)
+    left = s * s
+    for m in range(count):
+        if left == 0:
+            break
+        xm = ox[m]
+        ym = oy[m]
+        r2 = rr[m] * rr[m]
+        won = int(0)
+        for k in range(s):
+            shift = wp.uint64(k * s)
+            if ((taken >> shift) & row_bits) == row_bits:
+                continue
+            tx = (float(k) + 0.5) * su
+            dx = tx - xm
+            ax = dx * dx
+            if m != full and ax > r2:
+                continue
+            for kv in range(s):
+                bit = wp.uint64(1) << (shift + wp.uint64(kv))
+                if (taken & bit) == wp.uint64(0):
+                    ty = (float(kv) + 0.5) * sv
+                    dy = ty - ym
+                    if m == full or ax + dy * dy <= r2:
+                        taken = taken | bit
+                        won += 1
+        shares[m] = float(won)
+        left -= won
+    return shares
+
+
+@wp.func
 def pair_relation(
     xe: wp.float32,
     ye: wp.float32,
@@ -1110,6 +1156,148 @@ def _area_kernels(exact: bool):
 AREA_DEFERRED = {RESOLVER_SUBPOINTS: _area_kernels(False), RESOLVER_EXACT: _area_kernels(True)}
 
 
+def _side_kernels(exact: bool):
+    """The cell pass with a thread per (lamp side, cell) instead of one per cell, for one resolver: each thread
+    runs one lamp's gather, order and resolution (a cell's two lamps share no seeds, so one thread per cell ran two
+    independent chains back to back and the pass waited for the longest pair), leaves its shares in ``sides``, and a
+    light kernel per cell balances and pays both lamps. Undecided lamps go to a work list (one item per lamp, not
+    per cell) whose rows a thread each resolves, as ``_area_kernels``. Bitwise the same as ``area_cells``: each lamp's
+    shares come from the same functions on the same seeds, the rows add the same integers, and the payout is
+    ``pay_out`` on the same two ``SideShares``. Threads are numbered side-major (t = side n_cells + c), so that a warp
+    holds neighbouring cells of one lamp, whose seeds and branches are alike."""
+    rows_per_cell = RASTER
+
+    @wp.kernel
+    def area_sides(
+        grid: LampGridParams,
+        particles: LampParticles,
+        keys: wp.array[wp.uint64],
+        depth_slots: wp.int32,
+        sample_offset: wp.vec3i,
+        lamp_mask: wp.int32,
+        subpoints: wp.int32,
+        unit: wp.int32,
+        row_masks: wp.int32,
+        # outputs
+        sides: wp.array[SideShares],
+        work: wp.array[SeedList],
+        work_items: wp.array[wp.int32],
+        work_count: wp.array[wp.int32],
+    ):
+        """One thread per (lamp side, cell): steps 1-3 for that lamp into ``sides[t]``; an undecided lamp goes to the
+        work list while there is room (with the exact resolver's clip in its shares), else it is resolved here."""
+        t = wp.tid()
+        side = wp.where(t >= grid.n_cells, 1, 0)
+        c = t - side * grid.n_cells
+        cell = grid_cell(grid, c)
+        a = cell[0]
+        if ((lamp_mask >> (2 * a + side)) & 1) == 0:
+            return
+        hu = grid.h_u[a]
+        hv = grid.h_v[a]
+        both = wp.where((lamp_mask & GATHER_BOTH) != 0, 2, 0)
+        q = side_seeds(grid, particles, keys, depth_slots, sample_offset, a, cell[1], cell[2], side + both)
+        slot = int(-1)
+        if q.undecided != 0 and work.shape[0] > 0:
+            slot = wp.atomic_add(work_count, 0, 1)
+            if slot >= work.shape[0]:
+                slot = -1
+        sh = vec_seed_f()
+        if wp.static(exact):
+            if slot >= 0 and q.count > 0:
+                sh = clip_shares(q, hu, hv, unit)
+            else:
+                sh = resolve_exact(q, hu, hv, unit)
+        else:
+            if slot < 0:
+                if q.undecided == 0 and q.count > 0 and subpoints <= 8 and row_masks != 0:
+                    sh = subpoint_shares_rows(q.ox, q.oy, q.rr, q.full, q.count, hu, hv, subpoints)
+                else:
+                    sh = resolve_subpoints(q, hu, hv, subpoints)
+        out = finish_shares(q, sh)
+        if slot >= 0:
+            out.work = slot
+            work[slot] = q
+            work_items[slot] = t
+        sides[t] = out
+
+    @wp.kernel
+    def area_side_rows(
+        grid: LampGridParams,
+        work: wp.array[SeedList],
+        work_items: wp.array[wp.int32],
+        work_count: wp.array[wp.int32],
+        subpoints: wp.int32,
+        # outputs
+        work_units: wp.array[wp.int32],
+    ):
+        """One thread per (work item, row of points): that row's units per seed, added atomically."""
+        t = wp.tid()
+        n = subpoints
+        if wp.static(exact):
+            n = rows_per_cell
+        item = t / n
+        row = t - item * n
+        if item >= wp.min(work_count[0], work.shape[0]):
+            return
+        c = work_items[item]
+        if c >= grid.n_cells:
+            c -= grid.n_cells
+        a = grid_cell(grid, c)[0]
+        seeds = work[item]
+        units = row_points(seeds, grid.h_u[a], grid.h_v[a], n, row, wp.static(exact))
+        for k in range(seeds.count):
+            if units[k] != 0:
+                wp.atomic_add(work_units, 16 * item + k, units[k])
+
+    @wp.kernel
+    def area_side_payout(
+        grid: LampGridParams,
+        sides: wp.array[SideShares],
+        work_units: wp.array[wp.int32],
+        lamp_mask: wp.int32,
+        unit: wp.int32,
+        # outputs
+        counts: wp.array[wp.int64],
+        diag: wp.array[wp.int32],
+    ):
+        """One thread per cell: the work list's units into an undecided lamp's shares (as
+        ``area_payout_deferred``), then steps 4-5 for both lamps."""
+        c = wp.tid()
+        a = grid_cell(grid, c)[0]
+        bits = (lamp_mask >> (2 * a)) & 3
+        if bits == 0:
+            return
+        s0 = SideShares()
+        s1 = SideShares()
+        for side in range(2):
+            if ((bits >> side) & 1) != 0:
+                s = sides[side * grid.n_cells + c]
+                if s.work >= 0:
+                    sh = s.shares
+                    for k in range(s.count):
+                        u = float(work_units[16 * s.work + k])
+                        if wp.static(exact):
+                            sh[k] = wp.max(sh[k] + u * (float(unit) / float(RASTER * RASTER)), 0.0)
+                        else:
+                            sh[k] = u
+                    total = float(0.0)
+                    for k in range(s.count):
+                        total += sh[k]
+                    s.shares = sh
+                    s.total = total
+                if side == 0:
+                    s0 = s
+                else:
+                    s1 = s
+        pay_out(a, bits, s0, s1, RESOLVER_EXACT if wp.static(exact) else RESOLVER_SUBPOINTS, counts, diag)
+
+    return area_sides, area_side_rows, area_side_payout
+
+
+AREA_SIDES = {RESOLVER_SUBPOINTS: _side_kernels(False), RESOLVER_EXACT: _side_kernels(True)}
+
+
 @wp.kernel
 def area_hidden(
     grid: LampGridParams,
@@ -1167,3 +1355,39 @@ def area_hidden(
                 if e < rh and zb - rb > zh - wp.sqrt(wp.max(rh * rh - e * e, 0.0)):
                     bits = bits | bit
     hidden[b] = bits
+
+
+@wp.kernel
+def area_unhide(
+    sample_offset: wp.vec3i,
+    depth_slots: wp.int32,
+    hidden: wp.array[wp.int32],
+    # outputs
+    keys: wp.array[wp.uint64],
+):
+    """One thread per (corner sample, lamp side): drop from its D-slot list the keys of the spheres ``hidden`` flags
+    for that lamp, the rest moved up in order and EMPTY_KEY after them. What stays is a prefix of the D smallest keys
+    the flagged spheres leave (the list held the D smallest of all), so a depth pass that offers every sphere but
+    the flagged ones over it ends with the same D keys as one over emptied slots (``offer_slots`` keeps a key once),
+    while the offers that cannot enter cost a load instead of a chain of atomics."""
+    t = wp.tid()
+    s = t / 2
+    side = t - 2 * s
+    a = int(0)
+    if s >= sample_offset[2]:
+        a = 2
+    elif s >= sample_offset[1]:
+        a = 1
+    bit = 1 << (2 * a + side)
+    base = t * depth_slots
+    kept = int(0)
+    for k in range(depth_slots):
+        key = keys[base + k]
+        if key == EMPTY_KEY:
+            break
+        if (hidden[key_owner(key)] & bit) == 0:
+            if kept != k:
+                keys[base + kept] = key
+            kept += 1
+    for k in range(kept, depth_slots):
+        keys[base + k] = EMPTY_KEY
