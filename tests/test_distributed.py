@@ -287,6 +287,21 @@ def test_escape_filter_is_the_exact_test(device, ray):
     assert exact_escapes > 100  # the edges were crowded: the filter had escapes to keep
 
 
+def test_area_side_pass_across_ranks(monkeypatch):
+    """The area criterion's side pass (the CUDA default) across 2 thread ranks on the CPU: every area case and
+    split bitwise equal to one process, as the one-thread cell pass is."""
+    from warp_lamp.estimators import AreaSplit
+
+    monkeypatch.setattr(AreaSplit, "CELL_PASS", "sides")
+
+    def area_cases(coll):
+        return [r for r in distributed_cases.all_cases(coll, quick=True) if "area" in r["case"]]
+
+    flat = [r for part in run_ranks(fake_nccl_collectives(2), area_cases) for r in part]
+    assert len(flat) > 20
+    assert not _failures(flat)
+
+
 def test_window_scatter_reference(device):
     """dist_pack and dist_scatter_window against the scatter's reference: the window's shared cells decided by the
     reduced keys, its other cells by the rank's own key (no other rank reaches them), nothing outside it."""

@@ -431,7 +431,7 @@ class AreaSplit(FirstHit):
             # Measured on the H100 (bench/NOTES.md, issue 22): the cell pass is set by its stragglers.
             self.block_dim = 64
             self.defer = True
-        self.cell_pass = self.CELL_PASS
+        self.cell_pass = self.CELL_PASS or ("sides" if self.device.is_cuda else "cells")
 
     #: Deferred cells per cell of the grid: a cell whose order is undecided somewhere (1.4% of the SphereTest
     #: specimen's cell-lamps at 4 cells per diameter, a quarter of a strongly overlapping packing's) waits in a work
@@ -464,9 +464,12 @@ class AreaSplit(FirstHit):
                 "units": wp.zeros(2 * w * 16, dtype=wp.int32, device=d),
             }
 
-    #: The cell pass new estimators start with (:attr:`cell_pass`), and whether the side pass's sub-points go seed by
-    #: seed (:attr:`subpoint_rows`).
-    CELL_PASS = "cells"
+    #: The cell pass new estimators start with (:attr:`cell_pass`; None: ``"sides"`` on CUDA, ``"cells"`` on the
+    #: CPU), and whether the side pass's sub-points go seed by seed (:attr:`subpoint_rows`). Measured on an H200
+    #: (``bench/results/h200-2026-11-28-cellpass.json``), the side pass with sub-points by seed took the specimen's
+    #: cell pass at 4 cells per diameter from 0.322 to 0.210 ms (sub-points D3) and the 1M lattice's from 5.31 to
+    #: 3.12 ms; on the CPU it gains nothing and costs its buffer.
+    CELL_PASS = None
     SUBPOINT_ROWS = True
     #: Whether new estimators' hidden rounds start from the kept keys (:attr:`hidden_warm`).
     HIDDEN_WARM = True
