@@ -34,15 +34,25 @@ import warp as wp
 from warp_lamp.kernels.walls import LampWalls, plane_value
 from warp_lamp.kernels.wetted_base import (
     CANDIDATE_OK,
+    CERT_IN,
+    CERT_LIST,
+    CERT_NEAR,
+    CERT_TINY,
     DEEP,
     DIAG_GAPS,
     DIAG_RESCUED,
     DIAG_THIN,
     DIAG_UNCERTAIN,
+    SKIN_CERTIFIED,
+    SKIN_KEPT,
+    SKIN_PRIMED,
+    SKIN_RESET,
+    SKIN_RESETS,
     SLACK,
     WALL_SLACK,
     WALL_TAG,
     BinSpan,
+    CertIds,
     Chord,
     DeepDepths,
     DeepIds,
@@ -1303,6 +1313,269 @@ def voxel_point(wjk: wp.vec3i, b: wp.int32, box: WetBox) -> wp.vec3d:
     )
 
 
+@wp.func
+def cert_covered(
+    z: wp.vec3d,
+    a: wp.int32,
+    b: wp.int32,
+    c: wp.int32,
+    ids: CertIds,
+    n: wp.int32,
+    rs: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+) -> wp.bool:
+    """z lies inside a listed ball of radius r + rs other than list entries a, b, c, by the rounding allowance."""
+    for t in range(n):
+        if t != a and t != b and t != c:
+            q = ids[t]
+            big = wp.float64(radii[q]) + rs
+            v = z - centre_of(q, positions)
+            if dot3(v, v) < big * big * (wp.float64(1.0) - CERT_IN):
+                return True
+    return False
+
+
+@wp.func
+def dry_certificate(
+    x: wp.vec3d,
+    shrink: wp.float64,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.bool:
+    """The skin's certificate that x stays dry while no sphere moves ``shrink`` or more (radii and the set of spheres
+    as now, more spheres allowed): every point within rho of x lies inside a ball of radius r + rho - shrink.
+
+    Then every point within rho of x lies inside some inflated ball of any such later configuration, so no probe
+    centre within rho of x is allowed, whatever the reach, the exposure or the walls (which only forbid more), and
+    the exact test (``probe_reaches``) finds x dry. Checked as the exact test finds candidates: the point of the
+    shrunk balls' free set nearest to x is x itself, a radial projection, a nearest point on a circle where two
+    spheres meet, or a point where three meet; each of those within rho (times 1 + CERT_NEAR) of x must lie inside
+    another listed ball by CERT_IN. Near-degenerate geometry (tangent balls, x on a circle's axis, nearly collinear
+    centres, a circle nearly tangent to a third sphere) and more than CERT_LIST spheres near x: no certificate."""
+    rho = box.rho
+    rs = rho - shrink
+    thr2 = rho * rho * (wp.float64(1.0) + CERT_NEAR)
+    thr = wp.sqrt(thr2)
+    ids = CertIds()
+    n = int(0)
+    span = bin_span(x, (rmax + rs + thr) * (wp.float64(1.0) + SLACK), box)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    lim = (wp.float64(radii[q]) + rs + thr) * (wp.float64(1.0) + SLACK)
+                    v = x - centre_of(q, positions)
+                    if dot3(v, v) < lim * lim:
+                        if n == CERT_LIST:
+                            return False
+                        ids[n] = q
+                        n += 1
+                    q = next_in_bin[q]
+    # x itself must be covered; one ball holding all of x's rho-ball certifies at once.
+    inside = int(0)
+    for t in range(n):
+        q = ids[t]
+        big = wp.float64(radii[q]) + rs
+        v = x - centre_of(q, positions)
+        d2 = dot3(v, v)
+        if d2 < big * big * (wp.float64(1.0) - CERT_IN):
+            inside = 1
+            if wp.sqrt(d2) + thr < big * (wp.float64(1.0) - CERT_IN):
+                return True
+    if inside == 0:
+        return False
+    for t in range(n):
+        q = ids[t]
+        c = centre_of(q, positions)
+        v = x - c
+        d2 = dot3(v, v)
+        if d2 == wp.float64(0.0):
+            return False
+        z = c + v * ((wp.float64(radii[q]) + rs) / wp.sqrt(d2))
+        w = x - z
+        if dot3(w, w) <= thr2:
+            if not cert_covered(z, t, -1, -1, ids, n, rs, positions, radii):
+                return False
+    for a in range(n):
+        ci = centre_of(ids[a], positions)
+        big_i = wp.float64(radii[ids[a]]) + rs
+        bi2 = big_i * big_i
+        for b in range(a + 1, n):
+            cj = centre_of(ids[b], positions)
+            big_j = wp.float64(radii[ids[b]]) + rs
+            e = cj - ci
+            l2 = dot3(e, e)
+            if l2 == wp.float64(0.0):
+                continue
+            frac = ((bi2 - big_j * big_j) + l2) / (wp.float64(2.0) * l2)
+            rc2 = bi2 - (frac * frac) * l2
+            m = ci + e * frac
+            xm = x - m
+            tol = CERT_TINY * (bi2 + big_j * big_j)
+            if rc2 <= tol:
+                if rc2 >= -tol:
+                    # Nearly tangent: their contact point may be a free point; decline near it.
+                    near = thr + wp.float64(1.0e-5) * (big_i + big_j)
+                    if dot3(xm, xm) <= near * near:
+                        return False
+                continue
+            qe = dot3(xm, e)
+            qp = xm - e * (qe / l2)
+            qp2 = dot3(qp, qp)
+            if qp2 <= CERT_TINY * rc2:
+                # x on the circle's axis: every point of the circle about as near.
+                if (qe * qe) / l2 + rc2 * wp.float64(0.999) <= thr2:
+                    return False
+                continue
+            z = m + qp * wp.sqrt(rc2 / qp2)
+            w = x - z
+            e2 = dot3(w, w)
+            if e2 <= thr2:
+                if not cert_covered(z, a, b, -1, ids, n, rs, positions, radii):
+                    return False
+            if e2 <= thr2 * (wp.float64(1.0) + CERT_NEAR):
+                for k in range(b + 1, n):
+                    ck = centre_of(ids[k], positions)
+                    big_k = wp.float64(radii[ids[k]]) + rs
+                    f = ck - ci
+                    a12 = dot3(e, f)
+                    a22 = dot3(f, f)
+                    det = l2 * a22 - a12 * a12
+                    if det <= wp.float64(1.0e-6) * l2 * a22:
+                        gk = ck - cj
+                        if a22 == wp.float64(0.0) or dot3(gk, gk) == wp.float64(0.0):
+                            continue
+                        return False
+                    b1 = ((bi2 - big_j * big_j) + l2) * wp.float64(0.5)
+                    b2 = ((bi2 - big_k * big_k) + a22) * wp.float64(0.5)
+                    al = (b1 * a22 - b2 * a12) / det
+                    be = (b2 * l2 - b1 * a12) / det
+                    w0 = e * al + f * be
+                    nrm = cross3(e, f)
+                    nn = dot3(nrm, nrm)
+                    g2 = (bi2 - dot3(w0, w0)) / nn
+                    base = ci + w0
+                    gtol = CERT_TINY * bi2 / nn
+                    if wp.abs(g2) <= gtol:
+                        # The circle nearly tangent to the third sphere: decline near their contact.
+                        wb = x - base
+                        near = thr + wp.float64(1.0e-5) * big_i
+                        if dot3(wb, wb) <= near * near:
+                            return False
+                        continue
+                    if g2 < wp.float64(0.0):
+                        continue
+                    g = wp.sqrt(g2)
+                    for s in range(2):
+                        z = base + nrm * (g * wp.float64(1 - 2 * s))
+                        w = x - z
+                        if dot3(w, w) <= thr2:
+                            if not cert_covered(z, a, b, k, ids, n, rs, positions, radii):
+                                return False
+    return True
+
+
+@wp.kernel
+def wet_skin_start(
+    force: wp.int32,
+    # outputs
+    skin: wp.array[wp.int32],
+):
+    """One thread: this update takes a new reference (forced, or none taken yet) or not; the counters cleared."""
+    reset = force
+    if skin[SKIN_PRIMED] == 0:
+        reset = 1
+    skin[SKIN_RESET] = reset
+    skin[SKIN_KEPT] = 0
+    skin[SKIN_CERTIFIED] = 0
+
+
+@wp.kernel
+def wet_skin_moved(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    ref_pos: wp.array[wp.vec3],
+    ref_rad: wp.array[wp.float32],
+    ref_act: wp.array[wp.int32],
+    half: wp.float64,
+    # outputs
+    skin: wp.array[wp.int32],
+):
+    """One thread per particle: a particle that moved ``half`` the skin or more from the reference, changed its
+    radius, its activity or is not finite makes this update take a new reference (every kept decision dropped)."""
+    pid = wp.tid()
+    a = int(1)
+    if active.shape[0] > 0:
+        if active[pid] == 0:
+            a = 0
+    moved = int(0)
+    if a != ref_act[pid]:
+        moved = 1
+    elif a != 0:
+        if not (radii[pid] == ref_rad[pid]):
+            moved = 1
+        else:
+            p = positions[pid]
+            o = ref_pos[pid]
+            d = wp.vec3d(
+                wp.float64(p[0]) - wp.float64(o[0]),
+                wp.float64(p[1]) - wp.float64(o[1]),
+                wp.float64(p[2]) - wp.float64(o[2]),
+            )
+            if not (dot3(d, d) < half * half):
+                moved = 1
+    if moved != 0:
+        wp.atomic_max(skin, SKIN_RESET, 1)
+
+
+@wp.kernel
+def wet_skin_clear(
+    skin: wp.array[wp.int32],
+    # outputs
+    kept: wp.array[wp.uint32],
+):
+    """One thread per word: a new reference drops every kept decision."""
+    w = wp.tid()
+    if skin[SKIN_RESET] != 0:
+        kept[w] = wp.uint32(0)
+
+
+@wp.kernel
+def wet_skin_rebase(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    n: wp.int32,
+    # outputs
+    ref_pos: wp.array[wp.vec3],
+    ref_rad: wp.array[wp.float32],
+    ref_act: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
+):
+    """One thread per particle, after the classification: a new reference is this update's particles."""
+    t = wp.tid()
+    if skin[SKIN_RESET] == 0:
+        return
+    if t < n:
+        ref_pos[t] = positions[t]
+        ref_rad[t] = radii[t]
+        a = int(1)
+        if active.shape[0] > 0:
+            if active[t] == 0:
+                a = 0
+        ref_act[t] = a
+    if t == 0:
+        skin[SKIN_PRIMED] = 1
+        skin[SKIN_RESETS] = skin[SKIN_RESETS] + 1
+
+
 @wp.kernel
 def wet_classify(
     positions: wp.array[wp.vec3],
@@ -1318,17 +1591,24 @@ def wet_classify(
     exposed: wp.array[wp.int32],
     bits: wp.int32,
     capacity: wp.int32,
+    shrink: wp.float64,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
+    kept: wp.array[wp.uint32],
+    skin: wp.array[wp.int32],
 ):
     """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA): every voxel of the band (within rho +
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
     ``capacity`` > 0 the first ``capacity`` such voxels go to ``queue`` (their word * 32 + bit, in no set order;
     ``queued[0]``, zeroed before, counts them all) for ``wet_classify_queued``, and the thread tests the rest
-    itself. A thread sets only its own bits of ``fluid``."""
+    itself. A thread sets only its own bits of ``fluid``.
+
+    The skin (``kept`` not empty): a voxel whose bit is set in ``kept`` has a dry certificate
+    (``dry_certificate``) that still holds, unless this update takes a new reference: it stays dry untested (and
+    is counted as decided). A voxel tested dry gets a certificate when one can be made."""
     t = wp.tid()
     splits = 32 / bits
     idx = t / splits
@@ -1339,9 +1619,20 @@ def wet_classify(
     unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, w) & own
     if unc == wp.uint32(0):
         return
+    skinned = kept.shape[0] > 0
+    tested = int(0)
+    if skinned:
+        if skin[SKIN_RESET] == 0:
+            keep = kept[idx] & unc
+            if keep != wp.uint32(0):
+                nk = wp.bit_count(keep)
+                unc = unc & ~keep
+                tested += nk
+                wp.atomic_add(skin, SKIN_KEPT, nk)
     r_max = wp.float64(rmax[0])
     add = wp.uint32(0)
-    tested = int(0)
+    certified = wp.uint32(0)
+    n_cert = int(0)
     wet = int(0)
     while unc != wp.uint32(0):
         b = lowest_bit(unc)
@@ -1356,11 +1647,18 @@ def wet_classify(
         if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
+        elif skinned:
+            if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+                certified = certified | (wp.uint32(1) << wp.uint32(b))
+                n_cert += 1
     if add != wp.uint32(0):
         if bits == 32:
             fluid[idx] = fluid[idx] | add
         else:
             wp.atomic_or(fluid, idx, add)
+    if certified != wp.uint32(0):
+        wp.atomic_or(kept, idx, certified)
+        wp.atomic_add(skin, SKIN_CERTIFIED, n_cert)
     wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
     wp.atomic_add(diag, DIAG_RESCUED, wet)
 
@@ -1378,12 +1676,16 @@ def wet_classify_queued(
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
+    shrink: wp.float64,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
+    kept: wp.array[wp.uint32],
+    skin: wp.array[wp.int32],
 ):
     """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
-    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle."""
+    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel
+    tested dry gets its certificate here."""
     slot = wp.tid()
     if slot >= queued[0]:
         return
@@ -1392,9 +1694,14 @@ def wet_classify_queued(
     b = v - idx * 32
     wjk = word_coords(box, idx)
     x = voxel_point(wjk, b, box)
-    if probe_reaches(x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+    r_max = wp.float64(rmax[0])
+    if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
         wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
         wp.atomic_add(diag, DIAG_RESCUED, 1)
+    elif kept.shape[0] > 0:
+        if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+            wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
+            wp.atomic_add(skin, SKIN_CERTIFIED, 1)
 
 
 @wp.func

@@ -49,6 +49,24 @@ SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
 GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
+#: Spheres the skin's dry certificate lists around a voxel; with more it certifies nothing (the voxel is tested).
+CERT_LIST = 48
+CertIds = wp.types.vector(length=CERT_LIST, dtype=wp.int32)
+#: The skin's state (``WettedSurface._skin_state``, int32): reset in this update (1) or not, primed (a reference
+#: taken), dry decisions kept and certified in this update, resets since construction.
+SKIN_RESET = wp.constant(0)
+SKIN_PRIMED = wp.constant(1)
+SKIN_KEPT = wp.constant(2)
+SKIN_CERTIFIED = wp.constant(3)
+SKIN_RESETS = wp.constant(4)
+N_SKIN = 5
+#: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
+#: much, a point within rho of the voxel is one within rho^2 (1 + CERT_NEAR); they dwarf float64 rounding.
+CERT_IN = wp.constant(wp.float64(1.0e-6))
+CERT_NEAR = wp.constant(wp.float64(1.0e-6))
+#: Near-degenerate geometry the certificate declines (it certifies nothing there): tangent balls, a voxel on a
+#: circle's axis, nearly collinear centres, a circle nearly tangent to a third sphere.
+CERT_TINY = wp.constant(wp.float64(1.0e-12))
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
 #: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
