@@ -293,21 +293,26 @@ def _layout(grid: LampGrid, rho: float) -> dict:
 
 
 def wetted_nbytes(
-    grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0, device=None
+    grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0, device=None, skin=None
 ) -> int:
     """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: five bitmaps (blocked,
     solid, reached, fluid, band) and one per |dz| of the band's offsets (one bit per voxel each), three words per
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels). Particles add :data:`BYTES_PER_PARTICLE` each."""
-    return _nbytes(_layout(grid, check_probe_radius(probe_radius)), keep_owners, int(n_walls), wp.get_device(device))
+    :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap and its state.
+    Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
+    rho = check_probe_radius(probe_radius)
+    lay = _layout(grid, rho)
+    on = skin_distance(skin, lay["h"], rho) > 0.0
+    return _nbytes(lay, keep_owners, int(n_walls), wp.get_device(device), on)
 
 
-def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device) -> int:
+def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
     queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
-    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue
+    kept = 4 * (lay["n_words"] + KB.N_SKIN) if skin else 0
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
 
 def skin_distance(skin, h, probe_radius) -> float:
@@ -506,7 +511,7 @@ class WettedSurface:
         self.skin = skin_distance(skin, lay["h"], self.probe_radius)
         #: Walls that bound the fluid.
         self.n_walls = len(planes)
-        self.nbytes = _nbytes(lay, keep_owners, self.n_walls, self.device) + (4 * lay["n_words"] if self.skin else 0)
+        self.nbytes = _nbytes(lay, keep_owners, self.n_walls, self.device, self.skin > 0.0)
         self._faces = lay["faces"]
         self._seg = lay["seg"]
         self._n_seg = lay["n_seg"]
@@ -598,7 +603,7 @@ class WettedSurface:
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         # The skin: certified dry voxels, its state (kernels/wetted_base.py SKIN_*) and the reference particles.
         self.kept = wp.zeros(nw if self.skin else 0, dtype=wp.uint32, device=d)
-        self._skin_state = wp.zeros(KB.N_SKIN, dtype=wp.int32, device=d)
+        self._skin_state = wp.zeros(KB.N_SKIN if self.skin else 0, dtype=wp.int32, device=d)
         self._ref_pos = wp.zeros(0, dtype=wp.vec3, device=d)
         self._ref_rad = wp.zeros(0, dtype=wp.float32, device=d)
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
