@@ -78,6 +78,7 @@ __all__ = [
     "voxel_box",
     "voxel_diagonal",
     "wetted_nbytes",
+    "witness_capacity",
 ]
 
 #: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
@@ -91,6 +92,8 @@ BYTES_PER_WALL = 40
 #: The skin's default distance (``skin="auto"``) in voxel edges, at most half the probe radius: a dry decision's
 #: certificate holds while no sphere has moved this far since it was made.
 SKIN_CELLS = 0.1
+#: Fewest slots of the skin's witness table (:func:`witness_capacity`).
+WITNESS_MIN = 16384
 #: Device bytes per particle of the skin's reference: position, radius, activity.
 SKIN_BYTES_PER_PARTICLE = 20
 #: The exact test's queue (CUDA) holds one voxel in this many of the box (the specimen's tests: one in 60) ...
@@ -300,7 +303,8 @@ def wetted_nbytes(
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap and its state.
+    :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
+    witness table (:func:`witness_capacity`).
     Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
     rho = check_probe_radius(probe_radius)
     lay = _layout(grid, rho)
@@ -311,7 +315,7 @@ def wetted_nbytes(
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
     queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
-    kept = 4 * (lay["n_words"] + KB.N_SKIN) if skin else 0
+    kept = 4 * (lay["n_words"] + KB.N_SKIN) + 20 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
 
@@ -335,6 +339,14 @@ def skin_distance(skin, h, probe_radius) -> float:
             f"radius), got {skin!r}"
         )
     return d
+
+
+def witness_capacity(shape) -> int:
+    """Slots of the skin's witness table for a box of ``shape`` voxels: the power of two at or above one voxel in
+    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 20 bytes each. (The specimen's 7,500 wet tests in 0.8 M
+    voxels take a ninth of its 65,536; the table is wiped when three quarters are taken.)"""
+    n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
+    return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
 
 
 def exact_queue_capacity(shape, device) -> int:
@@ -383,6 +395,8 @@ class WettedDiagnostics:
         skin_certified: With the skin, voxels tested dry in this update that got a certificate to be kept.
         skin_reset: With the skin, whether this update took a new reference (every kept decision dropped).
         skin_resets: With the skin, references taken since construction (the first update takes one).
+        skin_witnessed: With the skin, voxels of ``rescued`` kept wet by re-checking the one candidate an earlier
+            update found them wet by (the others were tested).
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -420,6 +434,7 @@ class WettedDiagnostics:
     skin_certified: int = 0
     skin_reset: bool = False
     skin_resets: int = 0
+    skin_witnessed: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -488,12 +503,14 @@ class WettedSurface:
                 every wall, and a crossing goes to a wall when the wall is nearer than every sphere
                 (:attr:`wall_counts`). Placed in the frame once, in float64 (positions are frame coordinates);
                 :meth:`update` may take the walls placed elsewhere (``ShiningLamp`` places them on the device).
-            skin: Keep dry decisions between updates (:func:`skin_distance`: None off, ``"auto"``, or a distance
-                [m]): a voxel the exact test finds dry gets, where it can, a certificate that it stays dry while no
+            skin: Keep decisions between updates (:func:`skin_distance`: None off, ``"auto"``, or a distance
+                [m]). A voxel the exact test finds dry gets, where it can, a certificate that it stays dry while no
                 sphere moves the skin distance; later updates keep it untested until a particle has moved half the
                 skin from the reference (or changed its radius or activity, or the particle count changed), when
-                every kept decision is dropped and a new reference taken. Results are bitwise those without it; it
-                pays in a run of small moves (one more bitmap, :data:`SKIN_BYTES_PER_PARTICLE` per particle).
+                every kept dry decision is dropped and a new reference taken. A voxel found wet keeps the candidate
+                that made it wet, which later updates re-check alone before testing it. Results are bitwise those
+                without it; it pays in a run of small moves (one more bitmap, a witness table of
+                :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE` per particle).
         """
         self.probe_radius = check_probe_radius(probe_radius)
         if isinstance(walls, np.ndarray) and walls.ndim == 2 and walls.shape[1] == 4:
@@ -604,6 +621,9 @@ class WettedSurface:
         # The skin: certified dry voxels, its state (kernels/wetted_base.py SKIN_*) and the reference particles.
         self.kept = wp.zeros(nw if self.skin else 0, dtype=wp.uint32, device=d)
         self._skin_state = wp.zeros(KB.N_SKIN if self.skin else 0, dtype=wp.int32, device=d)
+        cap = witness_capacity(self.shape) if self.skin else 0
+        self._wit_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
+        self._wits = wp.zeros(cap, dtype=wp.vec4i, device=d)
         self._ref_pos = wp.zeros(0, dtype=wp.vec3, device=d)
         self._ref_rad = wp.zeros(0, dtype=wp.float32, device=d)
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
@@ -779,7 +799,8 @@ class WettedSurface:
             # A new reference when the particle count changed (host-known) or a particle moved half the skin.
             force = int(n != self._skin_n)
             self._skin_n = n
-            wp.launch(K.wet_skin_start, dim=1, inputs=[force], outputs=[self._skin_state], device=d)
+            cap = self._wit_keys.shape[0]
+            wp.launch(K.wet_skin_start, dim=1, inputs=[force, cap], outputs=[self._skin_state], device=d)
             if n > 0:
                 wp.launch(
                     K.wet_skin_moved,
@@ -788,7 +809,13 @@ class WettedSurface:
                     outputs=[self._skin_state],
                     device=d,
                 )
-            wp.launch(K.wet_skin_clear, dim=nw, inputs=[self._skin_state], outputs=[self.kept], device=d)
+            wp.launch(
+                K.wet_skin_clear,
+                dim=max(nw, cap),
+                inputs=[self._skin_state],
+                outputs=[self.kept, self._wit_keys],
+                device=d,
+            )
         if n > 0:
             wp.launch(
                 K.wet_expose,
@@ -817,8 +844,18 @@ class WettedSurface:
                 self._bits,
                 self._capacity,
                 self.skin,
+                n,
             ],
-            outputs=[self.fluid, self.diag, self.queue, self.queued, self.kept, self._skin_state],
+            outputs=[
+                self.fluid,
+                self.diag,
+                self.queue,
+                self.queued,
+                self.kept,
+                self._skin_state,
+                self._wit_keys,
+                self._wits,
+            ],
             device=d,
         )
         if self._capacity > 0:
@@ -839,7 +876,7 @@ class WettedSurface:
                     self.queued,
                     self.skin,
                 ],
-                outputs=[self.fluid, self.diag, self.kept, self._skin_state],
+                outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
                 device=d,
             )
         if self.skin:
@@ -951,6 +988,7 @@ class WettedSurface:
             out.skin_certified = int(st[KB.SKIN_CERTIFIED])
             out.skin_reset = bool(st[KB.SKIN_RESET])
             out.skin_resets = int(st[KB.SKIN_RESETS])
+            out.skin_witnessed = int(st[KB.SKIN_WITNESSED])
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
             thin = self.thin_faces.numpy()

@@ -44,13 +44,17 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_THIN,
     DIAG_UNCERTAIN,
     SKIN_CERTIFIED,
+    SKIN_FILLED,
     SKIN_KEPT,
     SKIN_PRIMED,
     SKIN_RESET,
     SKIN_RESETS,
+    SKIN_WIPE,
+    SKIN_WITNESSED,
     SLACK,
     WALL_SLACK,
     WALL_TAG,
+    WITNESS_PROBES,
     BinSpan,
     CertIds,
     Chord,
@@ -1011,7 +1015,7 @@ def wall_search(
 
 
 @wp.func
-def probe_reaches(
+def probe_search(
     x: wp.vec3d,
     lattice: wp.int32,
     rmax: wp.float64,
@@ -1023,8 +1027,12 @@ def probe_reaches(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-) -> wp.bool:
-    """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
+) -> wp.vec4i:
+    """``probe_reaches`` with its witness: (i, j, k, t) of the valid candidate it found on spheres alone (a radial
+    projection on i: j = k = -1; a circle point of i < j: k = -1; point t of the triple i < j < k), (-1, ...) for
+    one found otherwise (x itself, a wall's, or by the bin-walk search), (-2, ...) for none.
+
+    Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
     ``lattice`` 0: a voxel centre's own reach is the connectivity's), the radial projections of x onto the
     inflated spheres, the points nearest to x on their pairwise circles, and their triple points (pairs and triples
@@ -1041,7 +1049,7 @@ def probe_reaches(
     if lattice == 0:
         for wi in range(walls.n):
             if plane_value(walls.frame[wi], x) < wp.float64(0.0):
-                return False
+                return wp.vec4i(-2, -1, -1, 0)
         sspan = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
         for bz in range(sspan.lo[2], sspan.hi[2] + 1):
             for by in range(sspan.lo[1], sspan.hi[1] + 1):
@@ -1051,7 +1059,7 @@ def probe_reaches(
                         r = wp.float64(radii[q])
                         v = x - centre_of(q, positions)
                         if dot3(v, v) < r * r:
-                            return False
+                            return wp.vec4i(-2, -1, -1, 0)
                         q = next_in_bin[q]
         if (
             candidate_check_list(
@@ -1059,7 +1067,7 @@ def probe_reaches(
             )
             == CANDIDATE_OK
         ):
-            return True
+            return wp.vec4i(-1, -1, -1, 0)
     # The exposed spheres near x, less those whose cap within rho of x another sphere's inflated ball covers:
     # first the DEEP balls that hold x deepest (they cover most), then the listed ones. With more near than the
     # list holds (``box.near_list``), a second walk keeps only those the deep balls leave; with more of those, the
@@ -1142,12 +1150,12 @@ def probe_reaches(
                             i = next_in_bin[i]
         if cnt > limit:
             if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
-                return True
-            return wall_search(
-                x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-            )
+                return wp.vec4i(-1, -1, -1, 0)
+            if wall_search(x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+                return wp.vec4i(-1, -1, -1, 0)
+            return wp.vec4i(-2, -1, -1, 0)
     if (box.skip & 8) != 0:
-        return False
+        return wp.vec4i(-2, -1, -1, 0)
     kept = wp.uint64(0)
     for a in range(cnt):
         covered = int(0)
@@ -1178,7 +1186,7 @@ def probe_reaches(
         ids[b + 1] = key
     hint = int(-1)
     if (box.skip & 16) != 0:
-        return False
+        return wp.vec4i(-2, -1, -1, 0)
     # Faces: the commonest answer, so first.
     for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
         i = ids[a]
@@ -1193,7 +1201,7 @@ def probe_reaches(
                     x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                 )
                 if res == CANDIDATE_OK:
-                    return True
+                    return wp.vec4i(i, -1, -1, 0)
                 if res >= 0:
                     hint = res
     # Edges, and the vertices on every circle that passes within rho of x.
@@ -1215,7 +1223,7 @@ def probe_reaches(
                         x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                     )
                     if res == CANDIDATE_OK:
-                        return True
+                        return wp.vec4i(i, j, -1, 0)
                     if res >= 0:
                         hint = res
                 if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
@@ -1248,10 +1256,31 @@ def probe_reaches(
                                         g.n,
                                     )
                                     if res == CANDIDATE_OK:
-                                        return True
+                                        return wp.vec4i(i, j, k, t)
                                     if res >= 0:
                                         hint = res
-    return wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    if wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        return wp.vec4i(-1, -1, -1, 0)
+    return wp.vec4i(-2, -1, -1, 0)
+
+
+@wp.func
+def probe_reaches(
+    x: wp.vec3d,
+    lattice: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """Whether x is fluid by exact distances (``probe_search``, whose docstring says how)."""
+    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    return w[0] != -2
 
 
 @wp.kernel
@@ -1481,19 +1510,140 @@ def dry_certificate(
     return True
 
 
+@wp.func
+def witness_slot(v: wp.int32, capacity: wp.int32) -> wp.int32:
+    """The first slot of voxel v's key in a table of ``capacity`` (a power of two) slots."""
+    u = wp.uint32(v)
+    u = u ^ (u >> wp.uint32(16))
+    u = u * wp.uint32(0x45D9F3B)
+    u = u ^ (u >> wp.uint32(16))
+    return wp.int32(u & wp.uint32(capacity - 1))
+
+
+@wp.func
+def witness_find(v: wp.int32, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i]) -> wp.vec4i:
+    """Voxel v's stored witness, or (-2, ...) when it has none."""
+    cap = keys.shape[0]
+    s = witness_slot(v, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == v:
+            return wits[s]
+        if k == -1:
+            return wp.vec4i(-2, -1, -1, 0)
+        s = (s + 1) & (cap - 1)
+    return wp.vec4i(-2, -1, -1, 0)
+
+
+@wp.func
+def witness_store(
+    v: wp.int32, w: wp.vec4i, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i], skin: wp.array[wp.int32]
+):
+    """Voxel v's witness w (or (-2, ...): none) into its slot, taking a free one when it has none (counted); a
+    full probe run drops it. Only the thread deciding v writes v's slot in an update."""
+    cap = keys.shape[0]
+    s = witness_slot(v, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == v:
+            wits[s] = w
+            return
+        if k == -1:
+            if w[0] < 0:
+                return
+            old = wp.atomic_cas(keys, s, -1, v)
+            if old == -1 or old == v:
+                wits[s] = w
+                if old == -1:
+                    wp.atomic_add(skin, SKIN_FILLED, 1)
+                return
+        s = (s + 1) & (cap - 1)
+
+
+@wp.func
+def witness_holds(
+    x: wp.vec3d,
+    wit: wp.vec4i,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """The candidate an earlier update found x wet by (``probe_search``'s witness), recomputed from today's spheres
+    as the search computes it, is valid today. Then the search finds x wet too: its spheres are exposed and near x
+    (checked), so the search enumerates this candidate (it prunes a sphere only when another ball covers all its
+    points within rho of x, and then this one would be blocked), and it stops at a valid candidate."""
+    i = wit[0]
+    j = wit[1]
+    k = wit[2]
+    if i < 0 or i >= n or j >= n or k >= n or box.skip != 0:
+        return False
+    if exposed[i] == 0 or not gate_ok(x, i, positions, radii, box):
+        return False
+    rho = box.rho
+    rho2 = rho * rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    z = wp.vec3d(0.0)
+    if j < 0:
+        v = x - ci
+        d2 = dot3(v, v)
+        if not (d2 > wp.float64(0.0)):
+            return False
+        z = ci + v * (big_i / wp.sqrt(d2))
+    else:
+        if j <= i or exposed[j] == 0 or not gate_ok(x, j, positions, radii, box):
+            return False
+        cj = centre_of(j, positions)
+        big_j = wp.float64(radii[j]) + rho
+        cp = circle_point(x, ci, big_i, cj, big_j)
+        if cp[3] == wp.float64(0.0):
+            return False
+        z = wp.vec3d(cp[0], cp[1], cp[2])
+        if k >= 0:
+            e = x - z
+            if not (dot3(e, e) <= rho2 * (wp.float64(1.0) + SLACK)):
+                return False
+            if k <= j or exposed[k] == 0 or not gate_ok(x, k, positions, radii, box):
+                return False
+            vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
+            if vp[2, 0] == wp.float64(0.0):
+                return False
+            t = wit[3]
+            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+    w = x - z
+    if not (dot3(w, w) <= rho2):
+        return False
+    res = candidate_check(x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    return res == CANDIDATE_OK
+
+
 @wp.kernel
 def wet_skin_start(
     force: wp.int32,
+    capacity: wp.int32,
     # outputs
     skin: wp.array[wp.int32],
 ):
-    """One thread: this update takes a new reference (forced, or none taken yet) or not; the counters cleared."""
+    """One thread: this update takes a new reference (forced, or none taken yet) or not, wipes the witness table
+    (of ``capacity`` slots) when over three quarters of it are taken, and clears the counters."""
     reset = force
     if skin[SKIN_PRIMED] == 0:
         reset = 1
     skin[SKIN_RESET] = reset
     skin[SKIN_KEPT] = 0
     skin[SKIN_CERTIFIED] = 0
+    skin[SKIN_WITNESSED] = 0
+    skin[SKIN_WIPE] = 0
+    if 4 * skin[SKIN_FILLED] > 3 * capacity or skin[SKIN_PRIMED] == 0:
+        skin[SKIN_WIPE] = 1
+        skin[SKIN_FILLED] = 0
 
 
 @wp.kernel
@@ -1540,11 +1690,17 @@ def wet_skin_clear(
     skin: wp.array[wp.int32],
     # outputs
     kept: wp.array[wp.uint32],
+    keys: wp.array[wp.int32],
 ):
-    """One thread per word: a new reference drops every kept decision."""
-    w = wp.tid()
-    if skin[SKIN_RESET] != 0:
-        kept[w] = wp.uint32(0)
+    """One thread per word and per witness slot: a new reference drops every kept dry decision; a wipe, every
+    witness."""
+    t = wp.tid()
+    if t < kept.shape[0]:
+        if skin[SKIN_RESET] != 0:
+            kept[t] = wp.uint32(0)
+    if t < keys.shape[0]:
+        if skin[SKIN_WIPE] != 0:
+            keys[t] = -1
 
 
 @wp.kernel
@@ -1592,6 +1748,7 @@ def wet_classify(
     bits: wp.int32,
     capacity: wp.int32,
     shrink: wp.float64,
+    n_particles: wp.int32,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -1599,6 +1756,8 @@ def wet_classify(
     queued: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
     skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
 ):
     """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA): every voxel of the band (within rho +
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
@@ -1608,7 +1767,9 @@ def wet_classify(
 
     The skin (``kept`` not empty): a voxel whose bit is set in ``kept`` has a dry certificate
     (``dry_certificate``) that still holds, unless this update takes a new reference: it stays dry untested (and
-    is counted as decided). A voxel tested dry gets a certificate when one can be made."""
+    is counted as decided). A voxel tested dry gets a certificate when one can be made. A voxel found wet by a
+    candidate on spheres alone keeps it as its witness (``keys``, ``wits``): a later update re-checks that one
+    candidate first (``witness_holds``) and tests the voxel only when it fails."""
     t = wp.tid()
     splits = 32 / bits
     idx = t / splits
@@ -1634,20 +1795,36 @@ def wet_classify(
     certified = wp.uint32(0)
     n_cert = int(0)
     wet = int(0)
+    witnessed = int(0)
     while unc != wp.uint32(0):
         b = lowest_bit(unc)
         unc = unc & (unc - wp.uint32(1))
         tested += 1
+        if skinned:
+            wit = witness_find(idx * 32 + b, keys, wits)
+            if wit[0] >= 0:
+                xw = voxel_point(wjk, b, box)
+                if witness_holds(
+                    xw, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+                ):
+                    add = add | (wp.uint32(1) << wp.uint32(b))
+                    wet += 1
+                    witnessed += 1
+                    continue
         if capacity > 0:
             slot = wp.atomic_add(queued, 0, 1)
             if slot < capacity:
                 queue[slot] = idx * 32 + b
                 continue
         x = voxel_point(wjk, b, box)
-        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+        if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
+            if skinned:
+                witness_store(idx * 32 + b, found, keys, wits, skin)
         elif skinned:
+            witness_store(idx * 32 + b, found, keys, wits, skin)
             if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
                 certified = certified | (wp.uint32(1) << wp.uint32(b))
                 n_cert += 1
@@ -1659,6 +1836,8 @@ def wet_classify(
     if certified != wp.uint32(0):
         wp.atomic_or(kept, idx, certified)
         wp.atomic_add(skin, SKIN_CERTIFIED, n_cert)
+    if witnessed > 0:
+        wp.atomic_add(skin, SKIN_WITNESSED, witnessed)
     wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
     wp.atomic_add(diag, DIAG_RESCUED, wet)
 
@@ -1682,10 +1861,12 @@ def wet_classify_queued(
     diag: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
     skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
 ):
     """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
     into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel
-    tested dry gets its certificate here."""
+    tested dry gets its certificate here, one tested wet its witness."""
     slot = wp.tid()
     if slot >= queued[0]:
         return
@@ -1695,7 +1876,10 @@ def wet_classify_queued(
     wjk = word_coords(box, idx)
     x = voxel_point(wjk, b, box)
     r_max = wp.float64(rmax[0])
-    if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    if kept.shape[0] > 0:
+        witness_store(v, found, keys, wits, skin)
+    if found[0] != -2:
         wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
         wp.atomic_add(diag, DIAG_RESCUED, 1)
     elif kept.shape[0] > 0:

@@ -53,13 +53,20 @@ GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
 CERT_LIST = 48
 CertIds = wp.types.vector(length=CERT_LIST, dtype=wp.int32)
 #: The skin's state (``WettedSurface._skin_state``, int32): reset in this update (1) or not, primed (a reference
-#: taken), dry decisions kept and certified in this update, resets since construction.
+#: taken), dry decisions kept and certified in this update, resets since construction ...
 SKIN_RESET = wp.constant(0)
 SKIN_PRIMED = wp.constant(1)
 SKIN_KEPT = wp.constant(2)
 SKIN_CERTIFIED = wp.constant(3)
 SKIN_RESETS = wp.constant(4)
-N_SKIN = 5
+#: ... wet decisions kept by their witness in this update, witness keys taken since the table was last wiped, and
+#: whether this update wipes it (more than three quarters full).
+SKIN_WITNESSED = wp.constant(5)
+SKIN_FILLED = wp.constant(6)
+SKIN_WIPE = wp.constant(7)
+N_SKIN = 8
+#: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
+WITNESS_PROBES = wp.constant(16)
 #: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
 #: much, a point within rho of the voxel is one within rho^2 (1 + CERT_NEAR); they dwarf float64 rounding.
 CERT_IN = wp.constant(wp.float64(1.0e-6))
