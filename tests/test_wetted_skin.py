@@ -6,7 +6,7 @@ import warp as wp
 
 import warp_lamp as wl
 from warp_lamp.scenes import scene_cavity_block
-from warp_lamp.wetted import WettedSurface, skin_distance, unpack_bits
+from warp_lamp.wetted import WettedSurface, exact_queue_capacity, skin_distance, unpack_bits
 
 RHO = 0.35  # above the cavity block's window (0.25 at r = 0.45): its cavity is sealed
 H = 0.25
@@ -46,7 +46,7 @@ def assert_same(a, b, step):
         np.testing.assert_array_equal(x, y, err_msg=f"step {step}")
 
 
-def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3):
+def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False):
     """A short DEM-like run: small jiggles, two far jumps, a shell sphere removed and one moved away (the sealed
     cavity opens); after every update the skinned surface equals a from-scratch one bitwise. Returns the kept
     counts per step."""
@@ -62,6 +62,10 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3):
     above = above[c[above, 2] > centre[2] + 1.5]
     skinned = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto", walls=walls)
     fresh = WettedSurface(grid, probe_radius=RHO, device=device, walls=walls)
+    if packed:
+        # CUDA's layout on any device: the exact tests queued one per thread, 4 bits per classify thread.
+        skinned._exact_queue(exact_queue_capacity(skinned.shape, None))
+        skinned._bits = 4
     kept, witnessed, opened = [], [], None
     for step in range(steps):
         if step in (6, 15):
@@ -95,6 +99,11 @@ def test_skin_bitwise_over_a_dem_run(device):
     # Kept on the quiet steps (most of them), dropped where the reference was retaken.
     assert kept[0] == 0
     assert sum(k > 0 for k in kept) >= len(kept) // 2
+
+
+def test_skin_bitwise_with_queued_tests(device):
+    """The same run with the exact tests queued and 4 bits per classify thread (CUDA's layout): still bitwise."""
+    dem_run(device, steps=14, seed=5, packed=True)
 
 
 def test_skin_bitwise_with_walls(device):

@@ -627,7 +627,6 @@ class WettedSurface:
         self._ref_pos = wp.zeros(0, dtype=wp.vec3, device=d)
         self._ref_rad = wp.zeros(0, dtype=wp.float32, device=d)
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
-        self._skin_n = -1
         self.n = 0
 
     def _exact_queue(self, capacity: int) -> None:
@@ -658,7 +657,8 @@ class WettedSurface:
                 self._ref_pos = wp.zeros(n, dtype=wp.vec3, device=self.device)
                 self._ref_rad = wp.zeros(n, dtype=wp.float32, device=self.device)
                 self._ref_act = wp.zeros(n, dtype=wp.int32, device=self.device)
-                self._skin_n = -1
+                # Zeroed reference arrays: every active particle differs from them (activity 0), so the next update
+                # takes a new reference.
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -796,11 +796,9 @@ class WettedSurface:
         if last < 3:
             return
         if self.skin:
-            # A new reference when the particle count changed (host-known) or a particle moved half the skin.
-            force = int(n != self._skin_n)
-            self._skin_n = n
+            # A new reference when the particle count changed or a particle moved half the skin.
             cap = self._wit_keys.shape[0]
-            wp.launch(K.wet_skin_start, dim=1, inputs=[force, cap], outputs=[self._skin_state], device=d)
+            wp.launch(K.wet_skin_start, dim=1, inputs=[n, cap], outputs=[self._skin_state], device=d)
             if n > 0:
                 wp.launch(
                     K.wet_skin_moved,

@@ -44,6 +44,7 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_THIN,
     DIAG_UNCERTAIN,
     SKIN_CERTIFIED,
+    SKIN_COUNT,
     SKIN_FILLED,
     SKIN_KEPT,
     SKIN_PRIMED,
@@ -1626,16 +1627,19 @@ def witness_holds(
 
 @wp.kernel
 def wet_skin_start(
-    force: wp.int32,
+    n: wp.int32,
     capacity: wp.int32,
     # outputs
     skin: wp.array[wp.int32],
 ):
-    """One thread: this update takes a new reference (forced, or none taken yet) or not, wipes the witness table
-    (of ``capacity`` slots) when over three quarters of it are taken, and clears the counters."""
-    reset = force
-    if skin[SKIN_PRIMED] == 0:
+    """One thread: this update takes a new reference (none taken yet, or ``n`` particles where the reference had
+    another count) or not, wipes the witness table (of ``capacity`` slots) when over three quarters of it are taken,
+    and clears the counters. The count is compared here, on the device, so that a graph recorded at any point
+    replays right."""
+    reset = int(0)
+    if skin[SKIN_PRIMED] == 0 or skin[SKIN_COUNT] != n:
         reset = 1
+    skin[SKIN_COUNT] = n
     skin[SKIN_RESET] = reset
     skin[SKIN_KEPT] = 0
     skin[SKIN_CERTIFIED] = 0

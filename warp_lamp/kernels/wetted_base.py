@@ -64,7 +64,9 @@ SKIN_RESETS = wp.constant(4)
 SKIN_WITNESSED = wp.constant(5)
 SKIN_FILLED = wp.constant(6)
 SKIN_WIPE = wp.constant(7)
-N_SKIN = 8
+#: ... and the particle count of the reference.
+SKIN_COUNT = wp.constant(8)
+N_SKIN = 9
 #: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
 WITNESS_PROBES = wp.constant(16)
 #: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
