@@ -1367,6 +1367,33 @@ def cert_covered(
 
 
 @wp.func
+def cert_cap_covered(
+    x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, reach: wp.float64
+) -> wp.bool:
+    """``cap_covered`` for given balls: every point of sphere (ci, big_i) within ``reach`` of x lies inside ball
+    (cj, big_j), by 1e-6 in squared distance."""
+    v = x - ci
+    d2 = dot3(v, v)
+    e = cj - ci
+    l2 = dot3(e, e)
+    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
+        return False
+    d = wp.sqrt(d2)
+    el = wp.sqrt(l2)
+    ca = (big_i * big_i + d2 - reach * reach) / (wp.float64(2.0) * big_i * d)
+    if ca >= wp.float64(1.0):
+        return False
+    far2 = (big_i + el) * (big_i + el)
+    if ca > wp.float64(-1.0):
+        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
+        if cg + ca >= wp.float64(0.0):
+            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
+            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
+            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
+    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
 def dry_certificate(
     x: wp.vec3d,
     shrink: wp.float64,
@@ -1420,7 +1447,25 @@ def dry_certificate(
                 return True
     if inside == 0:
         return False
+    # A sphere whose points within rho of x another listed ball covers carries no free point there: its faces,
+    # circles and triple points are skipped (each of them lies in that ball; a circle or triple it defines with
+    # that ball cannot come within rho). The covering tests below still read every listed ball.
+    live = wp.uint64(0)
     for t in range(n):
+        ct = centre_of(ids[t], positions)
+        bt = wp.float64(radii[ids[t]]) + rs
+        covered = int(0)
+        u = int(0)
+        while u < n and covered == 0:
+            if u != t:
+                if cert_cap_covered(x, ct, bt, centre_of(ids[u], positions), wp.float64(radii[ids[u]]) + rs, thr):
+                    covered = 1
+            u += 1
+        if covered == 0:
+            live = live | (wp.uint64(1) << wp.uint64(t))
+    for t in range(n):
+        if ((live >> wp.uint64(t)) & wp.uint64(1)) == wp.uint64(0):
+            continue
         q = ids[t]
         c = centre_of(q, positions)
         v = x - c
@@ -1433,10 +1478,14 @@ def dry_certificate(
             if not cert_covered(z, t, -1, -1, ids, n, rs, positions, radii):
                 return False
     for a in range(n):
+        if ((live >> wp.uint64(a)) & wp.uint64(1)) == wp.uint64(0):
+            continue
         ci = centre_of(ids[a], positions)
         big_i = wp.float64(radii[ids[a]]) + rs
         bi2 = big_i * big_i
         for b in range(a + 1, n):
+            if ((live >> wp.uint64(b)) & wp.uint64(1)) == wp.uint64(0):
+                continue
             cj = centre_of(ids[b], positions)
             big_j = wp.float64(radii[ids[b]]) + rs
             e = cj - ci
@@ -1471,6 +1520,8 @@ def dry_certificate(
                     return False
             if e2 <= thr2 * (wp.float64(1.0) + CERT_NEAR):
                 for k in range(b + 1, n):
+                    if ((live >> wp.uint64(k)) & wp.uint64(1)) == wp.uint64(0):
+                        continue
                     ck = centre_of(ids[k], positions)
                     big_k = wp.float64(radii[ids[k]]) + rs
                     f = ck - ci
