@@ -4,8 +4,10 @@
 # (graph replay), the reset update, and a DEM-like run of 200 steps (random walk of 2e-4 rbar per step and
 # coordinate, one particle jumping a mean radius every 50 steps) replayed as graphs with and without the skin,
 # bitwise compared at every step (fluid words, counts, hits, per-ray crossings, the exact test's counters).
-# Writes $OUT/skin32.json and $OUT/skin32.log; the table last. About 2-4 minutes on an H100 (the wetted kernel
-# module's compile included: ~1-1.5 min on a bare machine). SKIN32_ARGS adds arguments (e.g. "--only specimen").
+# Writes $OUT/skin32.json and $OUT/skin32.log; the table last. About 2-4 minutes on an H100, of which the exact
+# test's module (kernels/wetted.py, changed by the skin) compiles for 1-2 minutes on a bare machine (NVRTC for sm_90
+# took 111 s on the loaded 2-core dev machine: wp.compile_aot_module(warp_lamp.kernels.wetted, arch=90) builds it
+# ahead, as the lease's kernel cache). SKIN32_ARGS adds arguments (e.g. "--only specimen" to halve the run).
 LOG="$OUT/skin32.log"
 : >"$LOG"
 t0=$SECONDS
