@@ -67,7 +67,7 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         # CUDA's layout on any device: the exact tests queued one per thread, 4 bits per classify thread.
         skinned._exact_queue(exact_queue_capacity(skinned.shape, None))
         skinned._bits = 4
-    kept, witnessed, opened = [], [], None
+    kept, witnessed, owned, opened = [], [], [], None
     for step in range(steps):
         if step in (6, 15):
             j = rng.integers(len(r))
@@ -83,6 +83,7 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         assert_same(state(skinned), state(fresh), step)
         kept.append(skinned.diagnostics().skin_kept)
         witnessed.append(skinned.diagnostics().skin_witnessed)
+        owned.append(skinned.diagnostics().skin_cross_kept)
         if step == 12:
             opened = skinned.diagnostics()
     fluid = opened.fluid
@@ -91,6 +92,8 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
     # Witnesses survive a new reference: every update after the first keeps wet decisions (unless the table is
     # wiped, which it is not in so short a run).
     assert min(witnessed[1:]) > 0
+    # Crossing owners are kept between references, and only without walls.
+    assert (max(owned) > 0) == (walls is None)
     return kept
 
 
@@ -114,9 +117,9 @@ def test_skin_bitwise_with_walls(device):
 
 
 def test_skin_keeps_decisions(device):
-    """At rest the second update keeps every certified voxel untested (a large share of the dry ones) and nearly
-    every wet one by its witness; a particle count change or a shift by one cell (a following grid) keeps no dry
-    decision."""
+    """At rest the second update keeps every certified voxel untested (a large share of the dry ones), nearly
+    every wet one by its witness and most crossings' owners; a particle count change or a shift by one cell (a
+    following grid) keeps no dry decision and no owner."""
     scene, grid = cavity_scene()
     s = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto")
     pos, rad, _ = upload(scene.centers, scene.radii, grid, device)
@@ -133,9 +136,11 @@ def test_skin_keeps_decisions(device):
     assert second.skin_kept == first.skin_certified
     assert second.skin_certified == 0
     assert first.skin_witnessed == 0 and second.skin_witnessed > 0.9 * first.rescued
+    crossings = 2 * sum(int(c.sum()) for c in second.crossings.values())
+    assert first.skin_cross_kept == 0 and second.skin_cross_kept > 0.5 * crossings
     shifted, rad, _ = upload(scene.centers + H, scene.radii, grid, device)
     s.update(shifted, rad)
-    assert s.diagnostics().skin_kept == 0 and s.diagnostics().skin_reset
+    assert s.diagnostics().skin_kept == 0 and s.diagnostics().skin_reset and s.diagnostics().skin_cross_kept == 0
     c = np.vstack([scene.centers, [[100.0, 100.0, 100.0]]])
     more, rad, _ = upload(c, np.append(scene.radii, 0.45), grid, device)
     s.update(more, rad)

@@ -304,7 +304,7 @@ def wetted_nbytes(
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
     :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
-    witness table (:func:`witness_capacity`).
+    witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
     Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
     rho = check_probe_radius(probe_radius)
     lay = _layout(grid, rho)
@@ -315,7 +315,7 @@ def wetted_nbytes(
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
     queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
-    kept = 4 * (lay["n_words"] + KB.N_SKIN) + 20 * witness_capacity(lay["n"]) if skin else 0
+    kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
 
@@ -343,7 +343,8 @@ def skin_distance(skin, h, probe_radius) -> float:
 
 def witness_capacity(shape) -> int:
     """Slots of the skin's witness table for a box of ``shape`` voxels: the power of two at or above one voxel in
-    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 20 bytes each. (The specimen's 7,500 wet tests in 0.8 M
+    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 20 bytes each (the crossings' owner table has as many
+    slots, 8 bytes each). (The specimen's 7,500 wet tests in 0.8 M
     voxels take a ninth of its 65,536; the table is wiped when three quarters are taken.)"""
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
     return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
@@ -397,6 +398,7 @@ class WettedDiagnostics:
         skin_resets: With the skin, references taken since construction (the first update takes one).
         skin_witnessed: With the skin, voxels of ``rescued`` kept wet by re-checking the one candidate an earlier
             update found them wet by (the others were tested).
+        skin_cross_kept: With the skin, crossings whose owner was kept without a search (none with walls).
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -435,6 +437,7 @@ class WettedDiagnostics:
     skin_reset: bool = False
     skin_resets: int = 0
     skin_witnessed: int = 0
+    skin_cross_kept: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -508,9 +511,11 @@ class WettedSurface:
                 sphere moves the skin distance; later updates keep it untested until a particle has moved half the
                 skin from the reference (or changed its radius or activity, or the particle count changed), when
                 every kept dry decision is dropped and a new reference taken. A voxel found wet keeps the candidate
-                that made it wet, which later updates re-check alone before testing it. Results are bitwise those
-                without it; it pays in a run of small moves (one more bitmap, a witness table of
-                :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE` per particle).
+                that made it wet, which later updates re-check alone before testing it. Without walls, a crossing
+                whose nearest sphere leads the runner-up by more than twice the skin keeps it as its owner until
+                the next reference. Results are bitwise those without it; it pays in a run of small moves (one more
+                bitmap, witness and owner tables of :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE`
+                per particle).
         """
         self.probe_radius = check_probe_radius(probe_radius)
         if isinstance(walls, np.ndarray) and walls.ndim == 2 and walls.shape[1] == 4:
@@ -624,6 +629,9 @@ class WettedSurface:
         cap = witness_capacity(self.shape) if self.skin else 0
         self._wit_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
         self._wits = wp.zeros(cap, dtype=wp.vec4i, device=d)
+        # Kept crossing owners by face (int32 key, int32 owner), as many slots as witnesses.
+        self._cross_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
+        self._cross_owners = wp.zeros(cap, dtype=wp.int32, device=d)
         self._ref_pos = wp.zeros(0, dtype=wp.vec3, device=d)
         self._ref_rad = wp.zeros(0, dtype=wp.float32, device=d)
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
@@ -798,7 +806,7 @@ class WettedSurface:
         if self.skin:
             # A new reference when the particle count changed or a particle moved half the skin.
             cap = self._wit_keys.shape[0]
-            wp.launch(K.wet_skin_start, dim=1, inputs=[n, cap], outputs=[self._skin_state], device=d)
+            wp.launch(K.wet_skin_start, dim=1, inputs=[n, cap, cap], outputs=[self._skin_state], device=d)
             if n > 0:
                 wp.launch(
                     K.wet_skin_moved,
@@ -811,7 +819,7 @@ class WettedSurface:
                 K.wet_skin_clear,
                 dim=max(nw, cap),
                 inputs=[self._skin_state],
-                outputs=[self.kept, self._wit_keys],
+                outputs=[self.kept, self._wit_keys, self._cross_keys],
                 device=d,
             )
         if n > 0:
@@ -903,8 +911,20 @@ class WettedSurface:
                 self.heads,
                 self.next_in_bin,
                 self.rmax,
+                self.skin,
+                n,
             ],
-            outputs=[self.counts, self.hits, self.rays, self.diag, self.owners, self.wall_counts],
+            outputs=[
+                self.counts,
+                self.hits,
+                self.rays,
+                self.diag,
+                self.owners,
+                self.wall_counts,
+                self._cross_keys,
+                self._cross_owners,
+                self._skin_state,
+            ],
             device=d,
         )
         if last < 5 or n == 0:
@@ -987,6 +1007,7 @@ class WettedSurface:
             out.skin_reset = bool(st[KB.SKIN_RESET])
             out.skin_resets = int(st[KB.SKIN_RESETS])
             out.skin_witnessed = int(st[KB.SKIN_WITNESSED])
+            out.skin_cross_kept = int(st[KB.SKIN_CROSS_KEPT])
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
             thin = self.thin_faces.numpy()

@@ -45,6 +45,9 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_UNCERTAIN,
     SKIN_CERTIFIED,
     SKIN_COUNT,
+    SKIN_CROSS_FILLED,
+    SKIN_CROSS_KEPT,
+    SKIN_CROSS_WIPE,
     SKIN_FILLED,
     SKIN_KEPT,
     SKIN_PRIMED,
@@ -80,6 +83,7 @@ from warp_lamp.kernels.wetted_base import (
     walls_allow,
     walls_corner,
     walls_fluid,
+    witness_slot,
     word_at,
     word_coords,
 )
@@ -1563,16 +1567,6 @@ def dry_certificate(
 
 
 @wp.func
-def witness_slot(v: wp.int32, capacity: wp.int32) -> wp.int32:
-    """The first slot of voxel v's key in a table of ``capacity`` (a power of two) slots."""
-    u = wp.uint32(v)
-    u = u ^ (u >> wp.uint32(16))
-    u = u * wp.uint32(0x45D9F3B)
-    u = u ^ (u >> wp.uint32(16))
-    return wp.int32(u & wp.uint32(capacity - 1))
-
-
-@wp.func
 def witness_find(v: wp.int32, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i]) -> wp.vec4i:
     """Voxel v's stored witness, or (-2, ...) when it has none."""
     cap = keys.shape[0]
@@ -1680,6 +1674,7 @@ def witness_holds(
 def wet_skin_start(
     n: wp.int32,
     capacity: wp.int32,
+    cross_capacity: wp.int32,
     # outputs
     skin: wp.array[wp.int32],
 ):
@@ -1699,6 +1694,10 @@ def wet_skin_start(
     if 4 * skin[SKIN_FILLED] > 3 * capacity or skin[SKIN_PRIMED] == 0:
         skin[SKIN_WIPE] = 1
         skin[SKIN_FILLED] = 0
+    skin[SKIN_CROSS_KEPT] = 0
+    skin[SKIN_CROSS_WIPE] = 0
+    if 4 * skin[SKIN_CROSS_FILLED] > 3 * cross_capacity:
+        skin[SKIN_CROSS_WIPE] = 1
 
 
 @wp.kernel
@@ -1746,16 +1745,21 @@ def wet_skin_clear(
     # outputs
     kept: wp.array[wp.uint32],
     keys: wp.array[wp.int32],
+    cross_keys: wp.array[wp.int32],
 ):
-    """One thread per word and per witness slot: a new reference drops every kept dry decision; a wipe, every
-    witness."""
+    """One thread per word and per table slot: a new reference drops every kept dry decision and every kept
+    crossing owner (their margins were measured from the old one); a wipe, every witness (or owner)."""
     t = wp.tid()
+    reset = skin[SKIN_RESET] != 0
     if t < kept.shape[0]:
-        if skin[SKIN_RESET] != 0:
+        if reset:
             kept[t] = wp.uint32(0)
     if t < keys.shape[0]:
         if skin[SKIN_WIPE] != 0:
             keys[t] = -1
+    if t < cross_keys.shape[0]:
+        if reset or skin[SKIN_CROSS_WIPE] != 0:
+            cross_keys[t] = -1
 
 
 @wp.kernel
@@ -1772,6 +1776,9 @@ def wet_skin_rebase(
 ):
     """One thread per particle, after the classification: a new reference is this update's particles."""
     t = wp.tid()
+    if t == 0:
+        if skin[SKIN_RESET] != 0 or skin[SKIN_CROSS_WIPE] != 0:
+            skin[SKIN_CROSS_FILLED] = 0
     if skin[SKIN_RESET] == 0:
         return
     if t < n:

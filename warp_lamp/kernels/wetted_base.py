@@ -66,7 +66,12 @@ SKIN_FILLED = wp.constant(6)
 SKIN_WIPE = wp.constant(7)
 #: ... and the particle count of the reference.
 SKIN_COUNT = wp.constant(8)
-N_SKIN = 9
+#: ... crossings whose owner was kept in this update, owner keys taken since the owner table was last wiped, and
+#: whether this update wipes it (three quarters full; a new reference wipes it too).
+SKIN_CROSS_KEPT = wp.constant(9)
+SKIN_CROSS_FILLED = wp.constant(10)
+SKIN_CROSS_WIPE = wp.constant(11)
+N_SKIN = 12
 #: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
 WITNESS_PROBES = wp.constant(16)
 #: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
@@ -314,3 +319,13 @@ def walls_fluid(x: wp.vec3d, walls: LampWalls, rho: wp.float64) -> wp.bool:
 def virtual_point(i: wp.int32, j: wp.int32, k: wp.int32, box: WetBox) -> wp.vec3d:
     """The voxel centre (i, j, k), also beyond the box."""
     return wp.vec3d(voxel_centre(i, box.h[0]), voxel_centre(j, box.h[1]), voxel_centre(k, box.h[2]))
+
+
+@wp.func
+def witness_slot(v: wp.int32, capacity: wp.int32) -> wp.int32:
+    """The first slot of voxel v's key in a table of ``capacity`` (a power of two) slots."""
+    u = wp.uint32(v)
+    u = u ^ (u >> wp.uint32(16))
+    u = u * wp.uint32(0x45D9F3B)
+    u = u ^ (u >> wp.uint32(16))
+    return wp.int32(u & wp.uint32(capacity - 1))

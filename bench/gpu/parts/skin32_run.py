@@ -1,7 +1,8 @@
 """The wetted surface's skin on one device: from scratch against the skin over a DEM-like run, bitwise every step.
 
-"Kept" counts both kinds of kept decision: dry voxels whose certificate holds, wet voxels whose witness re-check
-holds (``WettedSurface(skin=...)``); "tested" the voxels that got the full exact test.
+"Kept" counts both kinds of kept voxel decision: dry voxels whose certificate holds, wet voxels whose witness
+re-check holds (``WettedSurface(skin=...)``); "tested" the voxels that got the full exact test; "owners" the
+crossings whose nearest sphere was kept without a search.
 
 Per scene (the SphereTest specimen and the slot block at 4 cells per diameter, rho = one mean radius):
 
@@ -61,6 +62,7 @@ def answer(surf):
     skin = {
         "kept": int(st[KB.SKIN_KEPT]),
         "witnessed": int(st[KB.SKIN_WITNESSED]),
+        "cross_kept": int(st[KB.SKIN_CROSS_KEPT]),
         "certified": int(st[KB.SKIN_CERTIFIED]),
         "reset": bool(st[KB.SKIN_RESET]),
     }
@@ -115,6 +117,8 @@ def bench_scene(name, scene, device, args):
     rest = skin.diagnostics()
     row["skin_rest_kept"] = rest.skin_kept
     row["skin_rest_witnessed"] = rest.skin_witnessed
+    row["skin_rest_cross_kept"] = rest.skin_cross_kept
+    row["crossings"] = 2 * sum(int(c.sum()) for c in rest.crossings.values())
     # Every update a reset: one particle 0.75 skin away and back.
     moved_np = c0.copy()
     moved_np[0, 0] += 0.75 * skin.skin
@@ -169,6 +173,7 @@ def bench_scene(name, scene, device, args):
                 "scratch_s": tf,
                 "kept": ds["kept"],
                 "witnessed": ds["witnessed"],
+                "cross_kept": ds["cross_kept"],
                 "tested": uncertain - ds["kept"] - ds["witnessed"],
                 "certified": ds["certified"],
                 "reset": ds["reset"],
@@ -192,6 +197,7 @@ def bench_scene(name, scene, device, args):
         "scratch_mean_s": float(tf.mean()),
         "skin_quiet_median_s": float(np.median(ts[quiet])) if quiet.any() else None,
         "kept_fraction_mean": float((kept / np.maximum(kept + tested, 1)).mean()),
+        "cross_kept_mean": float(np.mean([s["cross_kept"] for s in steps])),
         "per_step": steps,
     }
     row["seconds"] = time.perf_counter() - t0
@@ -220,8 +226,8 @@ def table(result) -> str:
             )
     lines += [
         "",
-        "| scene | tested | wet | certified | kept dry / wet at rest | reset update ms | DEM steps | mismatching | "
-        "resets | kept frac | skin median ms | skin quiet median | scratch median ms |",
+        "| scene | tested | wet | certified | kept dry / wet / owners at rest (crossings) | reset update ms | DEM "
+        "steps | mismatching | resets | kept frac | skin median ms | skin quiet median | scratch median ms |",
         "| --- " * 13 + "|",
     ]
     for r in result["rows"]:
@@ -229,7 +235,7 @@ def table(result) -> str:
         quiet = m["skin_quiet_median_s"]
         lines.append(
             f"| {r['scene'][:24]} | {r['tested']} | {r['wet']} | {r['certified']} | "
-            f"{r['skin_rest_kept']} / {r['skin_rest_witnessed']} | "
+            f"{r['skin_rest_kept']} / {r['skin_rest_witnessed']} / {r['skin_rest_cross_kept']} ({r['crossings']}) | "
             f"{r['skin_reset_update_s'] * 1e3:.3f} | {m['steps']} | {m['mismatching_steps']} | {m['resets']} | "
             f"{m['kept_fraction_mean']:.3f} | {m['skin_median_s'] * 1e3:.3f} | "
             f"{'-' if quiet is None else f'{quiet * 1e3:.3f}'} | {m['scratch_median_s'] * 1e3:.3f} |"
