@@ -660,12 +660,12 @@ def test_bad_arguments_raise_clear_errors(device):
 def test_memory_is_known_before_allocation(device):
     """wetted_nbytes equals the bytes the surface allocates for its grid-sized buffers."""
     grid = wl.LampGrid([0, 0, 0], [3.1, 2.2, 1.7], 0.1)
-    for rho, keep in ((0.0, False), (0.35, True)):
-        surface = WettedSurface(grid, probe_radius=rho, keep_owners=keep, device=device)
+    for rho, keep, skin in ((0.0, False, None), (0.35, True, None), (0.35, False, "auto")):
+        surface = WettedSurface(grid, probe_radius=rho, keep_owners=keep, device=device, skin=skin)
         arrays = [v for v in vars(surface).values() if isinstance(v, wp.array)]
         per_particle = {id(surface.counts), id(surface.hits), id(surface.next_in_bin), id(surface._no_active)}
         allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)
-        assert wetted_nbytes(grid, rho, keep_owners=keep, device=device) == surface.nbytes
+        assert wetted_nbytes(grid, rho, keep_owners=keep, device=device, skin=skin) == surface.nbytes
         assert allocated == surface.nbytes
 
 

@@ -685,7 +685,7 @@ class WettedCrossings(Estimator):
     name = "wetted surface"
     steps = ("wetted",)
 
-    def __init__(self, frame: LampFrame, lamp_mask: int, *, lamps, probe_radius, max_rounds, max_bytes):
+    def __init__(self, frame: LampFrame, lamp_mask: int, *, lamps, probe_radius, max_rounds, max_bytes, skin=None):
         super().__init__(frame, lamp_mask)
         self.surface = WettedSurface(
             self.grid,
@@ -695,6 +695,7 @@ class WettedCrossings(Estimator):
             device=self.device,
             max_bytes=max_bytes,
             walls=frame.wall_planes,
+            skin=skin,
         )
         self.nbytes = self.surface.nbytes
         #: Signed counts per wall and axis (3 per wall), as the particles': the crossings each wall took.

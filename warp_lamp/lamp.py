@@ -8,6 +8,7 @@ runs the stages in order. :class:`FrameAveragedLamp` is a composite of K lamps i
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -133,6 +134,7 @@ class LampOptions:
     max_rounds: int = DEFAULT_MAX_ROUNDS
     max_bytes: float = DEFAULT_MAX_BYTES
     walls: np.ndarray | None = None
+    skin: bool = True
 
     @classmethod
     def checked(
@@ -152,6 +154,7 @@ class LampOptions:
         max_rounds=DEFAULT_MAX_ROUNDS,
         max_bytes=DEFAULT_MAX_BYTES,
         walls=None,
+        skin=True,
     ) -> LampOptions:
         """The options, or an error naming the first bad one."""
         if order not in ("auto", True, False):
@@ -181,6 +184,8 @@ class LampOptions:
                 raise ValueError("criterion: surfaces='all' loads crossings along the cell-centre rays (criterion 1)")
         elif probe_radius is not None:
             raise ValueError("probe_radius: only with surfaces='all'")
+        if skin not in (True, False):
+            raise ValueError(f"skin: expected True or False, got {format_value(skin)}")
         walls = check_walls(walls)
         if len(walls) and area:
             raise ValueError(
@@ -203,6 +208,7 @@ class LampOptions:
             max_rounds=max_rounds,
             max_bytes=max_bytes,
             walls=walls,
+            skin=bool(skin),
         )
 
     def estimator(self, frame: LampFrame) -> Estimator:
@@ -216,6 +222,7 @@ class LampOptions:
                 probe_radius=check_probe_radius(self.probe_radius),
                 max_rounds=self.max_rounds,
                 max_bytes=self.max_bytes,
+                skin="auto" if self.skin else None,
             )
         shared = dict(split=self.split, order=self.order, max_bytes=self.max_bytes)
         if self.criterion == "area":
@@ -293,6 +300,7 @@ class ShiningLamp:
         max_bytes: int = DEFAULT_MAX_BYTES,
         walls=None,
         tolerance: float | None = None,
+        skin: bool = True,
     ):
         """Allocate the per-cell arrays of ``grid`` on ``device``.
 
@@ -368,6 +376,9 @@ class ShiningLamp:
                 the rule, the scenes and what it does not promise); needs a ``LampGridSpec`` as ``grid`` and
                 leaves ``criterion`` and the area settings to the choice. :attr:`choice` (and
                 :meth:`diagnostics`) say what was chosen.
+            skin: ``surfaces="all"``: keep the exact test's dry decisions between updates while the particles move
+                less than a tenth of a cell (``WettedSurface(skin="auto")``); the results are bitwise the same
+                without it. False: decide every voxel anew at each update.
         """
         device = resolve_device(device)
         #: What ``tolerance=`` chose (None without it).
@@ -415,6 +426,7 @@ class ShiningLamp:
             max_rounds=max_rounds,
             max_bytes=max_bytes,
             walls=walls,
+            skin=skin,
         )
         self._setup(grid, options, device)
 
@@ -833,7 +845,8 @@ def _host_update(c, r, mask, grid: LampGrid, options: LampOptions, device, *, we
         message = walls_behind_message(visible, rv, options.walls)
         if message:
             warnings.warn(message, stacklevel=user_stacklevel())
-    lamp = ShiningLamp._build(grid, options, device)
+    # One update: a skin would only pay for certificates that no later update reads.
+    lamp = ShiningLamp._build(grid, dataclasses.replace(options, skin=False), device)
     lamp._weight = weight
     pos = wp.array(grid.to_frame(c).astype(np.float32).reshape(n, 3), dtype=wp.vec3, device=device)
     rad = wp.array(r.astype(np.float32), dtype=wp.float32, device=device)

@@ -73,10 +73,12 @@ __all__ = [
     "check_probe_radius",
     "dilation_table",
     "exact_queue_capacity",
+    "skin_distance",
     "unpack_bits",
     "voxel_box",
     "voxel_diagonal",
     "wetted_nbytes",
+    "witness_capacity",
 ]
 
 #: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
@@ -87,6 +89,13 @@ MAX_BINS = 1 << 24
 DEFAULT_MAX_ROUNDS = 200
 #: Device bytes per wall: its plane in the frame (one vec4) and its signed counts (3 int64).
 BYTES_PER_WALL = 40
+#: The skin's default distance (``skin="auto"``) in voxel edges, at most half the probe radius: a dry decision's
+#: certificate holds while no sphere has moved this far since it was made.
+SKIN_CELLS = 0.1
+#: Fewest slots of the skin's witness table (:func:`witness_capacity`).
+WITNESS_MIN = 16384
+#: Device bytes per particle of the skin's reference: position, radius, activity.
+SKIN_BYTES_PER_PARTICLE = 20
 #: The exact test's queue (CUDA) holds one voxel in this many of the box (the specimen's tests: one in 60) ...
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
@@ -287,21 +296,58 @@ def _layout(grid: LampGrid, rho: float) -> dict:
 
 
 def wetted_nbytes(
-    grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0, device=None
+    grid: LampGrid, probe_radius: float, *, keep_owners: bool = False, n_walls: int = 0, device=None, skin=None
 ) -> int:
     """Device bytes of the mode's grid-sized buffers [bytes], known before allocation: five bitmaps (blocked,
     solid, reached, fluid, band) and one per |dz| of the band's offsets (one bit per voxel each), three words per
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels). Particles add :data:`BYTES_PER_PARTICLE` each."""
-    return _nbytes(_layout(grid, check_probe_radius(probe_radius)), keep_owners, int(n_walls), wp.get_device(device))
+    :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
+    witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
+    Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
+    rho = check_probe_radius(probe_radius)
+    lay = _layout(grid, rho)
+    on = skin_distance(skin, lay["h"], rho) > 0.0
+    return _nbytes(lay, keep_owners, int(n_walls), wp.get_device(device), on)
 
 
-def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device) -> int:
+def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
     queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
-    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue
+    kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
+    return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
+
+
+def skin_distance(skin, h, probe_radius) -> float:
+    """The skin's distance [m] from the ``skin`` argument: None or False: off (0.0); ``"auto"`` or True:
+    :data:`SKIN_CELLS` voxel edges, at most half the probe radius (off when rho = 0); a number: that distance, in
+    (0, min(h) / 4] and at most rho. ValueError naming ``skin`` otherwise."""
+    rho = float(probe_radius)
+    hmin = float(np.min(np.asarray(h, dtype=np.float64)))
+    if skin is None or skin is False:
+        return 0.0
+    if skin is True or skin == "auto":
+        return min(SKIN_CELLS * hmin, 0.5 * rho) if rho > 0.0 else 0.0
+    try:
+        d = float(skin)
+    except (TypeError, ValueError):
+        raise ValueError(f"skin: expected None, 'auto' or a distance [m], got {skin!r}") from None
+    if not (np.isfinite(d) and 0.0 < d <= 0.25 * hmin and d <= rho):
+        raise ValueError(
+            f"skin: a distance in (0, {min(0.25 * hmin, rho):.6g}] m (a quarter voxel edge and at most the probe "
+            f"radius), got {skin!r}"
+        )
+    return d
+
+
+def witness_capacity(shape) -> int:
+    """Slots of the skin's witness table for a box of ``shape`` voxels: the power of two at or above one voxel in
+    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 20 bytes each (the crossings' owner table has as many
+    slots, 8 bytes each). (The specimen's 7,500 wet tests in 0.8 M
+    voxels take a ninth of its 65,536; the table is wiped when three quarters are taken.)"""
+    n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
+    return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
 
 
 def exact_queue_capacity(shape, device) -> int:
@@ -346,6 +392,13 @@ class WettedDiagnostics:
         nonconverged_total: Connectivity solves cut short since construction.
         wall_counts: Signed counts per wall and axis, shape (W, 3), int64, as ``counts`` (the crossings each wall
             took: the fluid's push on it); (0, 3) without walls.
+        skin_kept: With the skin, voxels of ``uncertain`` kept dry from an earlier update without a test (0 without).
+        skin_certified: With the skin, voxels tested dry in this update that got a certificate to be kept.
+        skin_reset: With the skin, whether this update took a new reference (every kept decision dropped).
+        skin_resets: With the skin, references taken since construction (the first update takes one).
+        skin_witnessed: With the skin, voxels of ``rescued`` kept wet by re-checking the one candidate an earlier
+            update found them wet by (the others were tested).
+        skin_cross_kept: With the skin, crossings whose owner was kept without a search (none with walls).
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -379,6 +432,12 @@ class WettedDiagnostics:
     nonconverged: bool
     nonconverged_total: int
     wall_counts: np.ndarray | None = None
+    skin_kept: int = 0
+    skin_certified: int = 0
+    skin_reset: bool = False
+    skin_resets: int = 0
+    skin_witnessed: int = 0
+    skin_cross_kept: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -424,6 +483,7 @@ class WettedSurface:
         device=None,
         max_bytes: int = DEFAULT_MAX_BYTES,
         walls=None,
+        skin=None,
     ):
         """Allocate the voxel bitmaps of ``grid`` on ``device``.
 
@@ -446,6 +506,16 @@ class WettedSurface:
                 every wall, and a crossing goes to a wall when the wall is nearer than every sphere
                 (:attr:`wall_counts`). Placed in the frame once, in float64 (positions are frame coordinates);
                 :meth:`update` may take the walls placed elsewhere (``ShiningLamp`` places them on the device).
+            skin: Keep decisions between updates (:func:`skin_distance`: None off, ``"auto"``, or a distance
+                [m]). A voxel the exact test finds dry gets, where it can, a certificate that it stays dry while no
+                sphere moves the skin distance; later updates keep it untested until a particle has moved half the
+                skin from the reference (or changed its radius or activity, or the particle count changed), when
+                every kept dry decision is dropped and a new reference taken. A voxel found wet keeps the candidate
+                that made it wet, which later updates re-check alone before testing it. Without walls, a crossing
+                whose nearest sphere leads the runner-up by more than twice the skin keeps it as its owner until
+                the next reference. Results are bitwise those without it; it pays in a run of small moves (one more
+                bitmap, witness and owner tables of :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE`
+                per particle).
         """
         self.probe_radius = check_probe_radius(probe_radius)
         if isinstance(walls, np.ndarray) and walls.ndim == 2 and walls.shape[1] == 4:
@@ -459,9 +529,11 @@ class WettedSurface:
         self.max_rounds = int(max_rounds)
         self.device = wp.get_device(device)
         lay = _layout(grid, self.probe_radius)
+        #: The skin's distance [m]; 0.0: off.
+        self.skin = skin_distance(skin, lay["h"], self.probe_radius)
         #: Walls that bound the fluid.
         self.n_walls = len(planes)
-        self.nbytes = _nbytes(lay, keep_owners, self.n_walls, self.device)
+        self.nbytes = _nbytes(lay, keep_owners, self.n_walls, self.device, self.skin > 0.0)
         self._faces = lay["faces"]
         self._seg = lay["seg"]
         self._n_seg = lay["n_seg"]
@@ -551,6 +623,18 @@ class WettedSurface:
         self.next_in_bin = wp.zeros(0, dtype=wp.int32, device=d)
         self.exposed = wp.zeros(0, dtype=wp.int32, device=d)
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
+        # The skin: certified dry voxels, its state (kernels/wetted_base.py SKIN_*) and the reference particles.
+        self.kept = wp.zeros(nw if self.skin else 0, dtype=wp.uint32, device=d)
+        self._skin_state = wp.zeros(KB.N_SKIN if self.skin else 0, dtype=wp.int32, device=d)
+        cap = witness_capacity(self.shape) if self.skin else 0
+        self._wit_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
+        self._wits = wp.zeros(cap, dtype=wp.vec4i, device=d)
+        # Kept crossing owners by face (int32 key, int32 owner), as many slots as witnesses.
+        self._cross_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
+        self._cross_owners = wp.zeros(cap, dtype=wp.int32, device=d)
+        self._ref_pos = wp.zeros(0, dtype=wp.vec3, device=d)
+        self._ref_rad = wp.zeros(0, dtype=wp.float32, device=d)
+        self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
         self.n = 0
 
     def _exact_queue(self, capacity: int) -> None:
@@ -577,6 +661,12 @@ class WettedSurface:
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
+            if self.skin:
+                self._ref_pos = wp.zeros(n, dtype=wp.vec3, device=self.device)
+                self._ref_rad = wp.zeros(n, dtype=wp.float32, device=self.device)
+                self._ref_act = wp.zeros(n, dtype=wp.int32, device=self.device)
+                # Zeroed reference arrays: every active particle differs from them (activity 0), so the next update
+                # takes a new reference.
 
     def _check_array(self, name, arr, dtype, n=None):
         check_warp_array(name, arr, dtype, self.device, "the wetted surface", n)
@@ -713,6 +803,25 @@ class WettedSurface:
             wp.launch(KS.wet_dilate_z, dim=nw, inputs=[box, walls, wy, wz, self.planes, table], outputs=[out], device=d)
         if last < 3:
             return
+        if self.skin:
+            # A new reference when the particle count changed or a particle moved half the skin.
+            cap = self._wit_keys.shape[0]
+            wp.launch(K.wet_skin_start, dim=1, inputs=[n, cap, cap], outputs=[self._skin_state], device=d)
+            if n > 0:
+                wp.launch(
+                    K.wet_skin_moved,
+                    dim=n,
+                    inputs=[positions, radii, active, self._ref_pos, self._ref_rad, self._ref_act, 0.5 * self.skin],
+                    outputs=[self._skin_state],
+                    device=d,
+                )
+            wp.launch(
+                K.wet_skin_clear,
+                dim=max(nw, cap),
+                inputs=[self._skin_state],
+                outputs=[self.kept, self._wit_keys, self._cross_keys],
+                device=d,
+            )
         if n > 0:
             wp.launch(
                 K.wet_expose,
@@ -740,8 +849,19 @@ class WettedSurface:
                 self.exposed,
                 self._bits,
                 self._capacity,
+                self.skin,
+                n,
             ],
-            outputs=[self.fluid, self.diag, self.queue, self.queued],
+            outputs=[
+                self.fluid,
+                self.diag,
+                self.queue,
+                self.queued,
+                self.kept,
+                self._skin_state,
+                self._wit_keys,
+                self._wits,
+            ],
             device=d,
         )
         if self._capacity > 0:
@@ -760,8 +880,17 @@ class WettedSurface:
                     self.exposed,
                     self.queue,
                     self.queued,
+                    self.skin,
                 ],
-                outputs=[self.fluid, self.diag],
+                outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
+                device=d,
+            )
+        if self.skin:
+            wp.launch(
+                K.wet_skin_rebase,
+                dim=max(n, 1),
+                inputs=[positions, radii, active, n],
+                outputs=[self._ref_pos, self._ref_rad, self._ref_act, self._skin_state],
                 device=d,
             )
         if last < 4:
@@ -782,8 +911,20 @@ class WettedSurface:
                 self.heads,
                 self.next_in_bin,
                 self.rmax,
+                self.skin,
+                n,
             ],
-            outputs=[self.counts, self.hits, self.rays, self.diag, self.owners, self.wall_counts],
+            outputs=[
+                self.counts,
+                self.hits,
+                self.rays,
+                self.diag,
+                self.owners,
+                self.wall_counts,
+                self._cross_keys,
+                self._cross_owners,
+                self._skin_state,
+            ],
             device=d,
         )
         if last < 5 or n == 0:
@@ -859,6 +1000,14 @@ class WettedSurface:
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
         )
+        if self.skin:
+            st = self._skin_state.numpy()
+            out.skin_kept = int(st[KB.SKIN_KEPT])
+            out.skin_certified = int(st[KB.SKIN_CERTIFIED])
+            out.skin_reset = bool(st[KB.SKIN_RESET])
+            out.skin_resets = int(st[KB.SKIN_RESETS])
+            out.skin_witnessed = int(st[KB.SKIN_WITNESSED])
+            out.skin_cross_kept = int(st[KB.SKIN_CROSS_KEPT])
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()
             thin = self.thin_faces.numpy()

@@ -34,15 +34,33 @@ import warp as wp
 from warp_lamp.kernels.walls import LampWalls, plane_value
 from warp_lamp.kernels.wetted_base import (
     CANDIDATE_OK,
+    CERT_IN,
+    CERT_LIST,
+    CERT_NEAR,
+    CERT_TINY,
     DEEP,
     DIAG_GAPS,
     DIAG_RESCUED,
     DIAG_THIN,
     DIAG_UNCERTAIN,
+    SKIN_CERTIFIED,
+    SKIN_COUNT,
+    SKIN_CROSS_FILLED,
+    SKIN_CROSS_KEPT,
+    SKIN_CROSS_WIPE,
+    SKIN_FILLED,
+    SKIN_KEPT,
+    SKIN_PRIMED,
+    SKIN_RESET,
+    SKIN_RESETS,
+    SKIN_WIPE,
+    SKIN_WITNESSED,
     SLACK,
     WALL_SLACK,
     WALL_TAG,
+    WITNESS_PROBES,
     BinSpan,
+    CertIds,
     Chord,
     DeepDepths,
     DeepIds,
@@ -65,6 +83,7 @@ from warp_lamp.kernels.wetted_base import (
     walls_allow,
     walls_corner,
     walls_fluid,
+    witness_slot,
     word_at,
     word_coords,
 )
@@ -1001,7 +1020,7 @@ def wall_search(
 
 
 @wp.func
-def probe_reaches(
+def probe_search(
     x: wp.vec3d,
     lattice: wp.int32,
     rmax: wp.float64,
@@ -1013,8 +1032,12 @@ def probe_reaches(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-) -> wp.bool:
-    """Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
+) -> wp.vec4i:
+    """``probe_reaches`` with its witness: (i, j, k, t) of the valid candidate it found on spheres alone (a radial
+    projection on i: j = k = -1; a circle point of i < j: k = -1; point t of the triple i < j < k), (-1, ...) for
+    one found otherwise (x itself, a wall's, or by the bin-walk search), (-2, ...) for none.
+
+    Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
     ``lattice`` 0: a voxel centre's own reach is the connectivity's), the radial projections of x onto the
     inflated spheres, the points nearest to x on their pairwise circles, and their triple points (pairs and triples
@@ -1031,7 +1054,7 @@ def probe_reaches(
     if lattice == 0:
         for wi in range(walls.n):
             if plane_value(walls.frame[wi], x) < wp.float64(0.0):
-                return False
+                return wp.vec4i(-2, -1, -1, 0)
         sspan = bin_span(x, rmax * (wp.float64(1.0) + SLACK), box)
         for bz in range(sspan.lo[2], sspan.hi[2] + 1):
             for by in range(sspan.lo[1], sspan.hi[1] + 1):
@@ -1041,7 +1064,7 @@ def probe_reaches(
                         r = wp.float64(radii[q])
                         v = x - centre_of(q, positions)
                         if dot3(v, v) < r * r:
-                            return False
+                            return wp.vec4i(-2, -1, -1, 0)
                         q = next_in_bin[q]
         if (
             candidate_check_list(
@@ -1049,7 +1072,7 @@ def probe_reaches(
             )
             == CANDIDATE_OK
         ):
-            return True
+            return wp.vec4i(-1, -1, -1, 0)
     # The exposed spheres near x, less those whose cap within rho of x another sphere's inflated ball covers:
     # first the DEEP balls that hold x deepest (they cover most), then the listed ones. With more near than the
     # list holds (``box.near_list``), a second walk keeps only those the deep balls leave; with more of those, the
@@ -1132,12 +1155,12 @@ def probe_reaches(
                             i = next_in_bin[i]
         if cnt > limit:
             if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
-                return True
-            return wall_search(
-                x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-            )
+                return wp.vec4i(-1, -1, -1, 0)
+            if wall_search(x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+                return wp.vec4i(-1, -1, -1, 0)
+            return wp.vec4i(-2, -1, -1, 0)
     if (box.skip & 8) != 0:
-        return False
+        return wp.vec4i(-2, -1, -1, 0)
     kept = wp.uint64(0)
     for a in range(cnt):
         covered = int(0)
@@ -1168,7 +1191,7 @@ def probe_reaches(
         ids[b + 1] = key
     hint = int(-1)
     if (box.skip & 16) != 0:
-        return False
+        return wp.vec4i(-2, -1, -1, 0)
     # Faces: the commonest answer, so first.
     for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
         i = ids[a]
@@ -1183,7 +1206,7 @@ def probe_reaches(
                     x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                 )
                 if res == CANDIDATE_OK:
-                    return True
+                    return wp.vec4i(i, -1, -1, 0)
                 if res >= 0:
                     hint = res
     # Edges, and the vertices on every circle that passes within rho of x.
@@ -1205,7 +1228,7 @@ def probe_reaches(
                         x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                     )
                     if res == CANDIDATE_OK:
-                        return True
+                        return wp.vec4i(i, j, -1, 0)
                     if res >= 0:
                         hint = res
                 if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
@@ -1238,10 +1261,31 @@ def probe_reaches(
                                         g.n,
                                     )
                                     if res == CANDIDATE_OK:
-                                        return True
+                                        return wp.vec4i(i, j, k, t)
                                     if res >= 0:
                                         hint = res
-    return wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    if wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        return wp.vec4i(-1, -1, -1, 0)
+    return wp.vec4i(-2, -1, -1, 0)
+
+
+@wp.func
+def probe_reaches(
+    x: wp.vec3d,
+    lattice: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """Whether x is fluid by exact distances (``probe_search``, whose docstring says how)."""
+    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    return w[0] != -2
 
 
 @wp.kernel
@@ -1303,6 +1347,453 @@ def voxel_point(wjk: wp.vec3i, b: wp.int32, box: WetBox) -> wp.vec3d:
     )
 
 
+@wp.func
+def cert_covered(
+    z: wp.vec3d,
+    a: wp.int32,
+    b: wp.int32,
+    c: wp.int32,
+    ids: CertIds,
+    n: wp.int32,
+    rs: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+) -> wp.bool:
+    """z lies inside a listed ball of radius r + rs other than list entries a, b, c, by the rounding allowance."""
+    for t in range(n):
+        if t != a and t != b and t != c:
+            q = ids[t]
+            big = wp.float64(radii[q]) + rs
+            v = z - centre_of(q, positions)
+            if dot3(v, v) < big * big * (wp.float64(1.0) - CERT_IN):
+                return True
+    return False
+
+
+@wp.func
+def cert_cap_covered(
+    x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, reach: wp.float64
+) -> wp.bool:
+    """``cap_covered`` for given balls: every point of sphere (ci, big_i) within ``reach`` of x lies inside ball
+    (cj, big_j), by 1e-6 in squared distance."""
+    v = x - ci
+    d2 = dot3(v, v)
+    e = cj - ci
+    l2 = dot3(e, e)
+    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
+        return False
+    d = wp.sqrt(d2)
+    el = wp.sqrt(l2)
+    ca = (big_i * big_i + d2 - reach * reach) / (wp.float64(2.0) * big_i * d)
+    if ca >= wp.float64(1.0):
+        return False
+    far2 = (big_i + el) * (big_i + el)
+    if ca > wp.float64(-1.0):
+        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
+        if cg + ca >= wp.float64(0.0):
+            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
+            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
+            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
+    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
+def dry_certificate(
+    x: wp.vec3d,
+    shrink: wp.float64,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.bool:
+    """The skin's certificate that x stays dry while no sphere moves ``shrink`` or more (radii and the set of spheres
+    as now, more spheres allowed): every point within rho of x lies inside a ball of radius r + rho - shrink.
+
+    Then every point within rho of x lies inside some inflated ball of any such later configuration, so no probe
+    centre within rho of x is allowed, whatever the reach, the exposure or the walls (which only forbid more), and
+    the exact test (``probe_reaches``) finds x dry. Checked as the exact test finds candidates: the point of the
+    shrunk balls' free set nearest to x is x itself, a radial projection, a nearest point on a circle where two
+    spheres meet, or a point where three meet; each of those within rho (times 1 + CERT_NEAR) of x must lie inside
+    another listed ball by CERT_IN. Near-degenerate geometry (tangent balls, x on a circle's axis, nearly collinear
+    centres, a circle nearly tangent to a third sphere) and more than CERT_LIST spheres near x: no certificate."""
+    rho = box.rho
+    rs = rho - shrink
+    thr2 = rho * rho * (wp.float64(1.0) + CERT_NEAR)
+    thr = wp.sqrt(thr2)
+    ids = CertIds()
+    n = int(0)
+    span = bin_span(x, (rmax + rs + thr) * (wp.float64(1.0) + SLACK), box)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    lim = (wp.float64(radii[q]) + rs + thr) * (wp.float64(1.0) + SLACK)
+                    v = x - centre_of(q, positions)
+                    if dot3(v, v) < lim * lim:
+                        if n == CERT_LIST:
+                            return False
+                        ids[n] = q
+                        n += 1
+                    q = next_in_bin[q]
+    # x itself must be covered; one ball holding all of x's rho-ball certifies at once.
+    inside = int(0)
+    for t in range(n):
+        q = ids[t]
+        big = wp.float64(radii[q]) + rs
+        v = x - centre_of(q, positions)
+        d2 = dot3(v, v)
+        if d2 < big * big * (wp.float64(1.0) - CERT_IN):
+            inside = 1
+            if wp.sqrt(d2) + thr < big * (wp.float64(1.0) - CERT_IN):
+                return True
+    if inside == 0:
+        return False
+    # A sphere whose points within rho of x another listed ball covers carries no free point there: its faces,
+    # circles and triple points are skipped (each of them lies in that ball; a circle or triple it defines with
+    # that ball cannot come within rho). The covering tests below still read every listed ball.
+    live = wp.uint64(0)
+    for t in range(n):
+        ct = centre_of(ids[t], positions)
+        bt = wp.float64(radii[ids[t]]) + rs
+        covered = int(0)
+        u = int(0)
+        while u < n and covered == 0:
+            if u != t:
+                if cert_cap_covered(x, ct, bt, centre_of(ids[u], positions), wp.float64(radii[ids[u]]) + rs, thr):
+                    covered = 1
+            u += 1
+        if covered == 0:
+            live = live | (wp.uint64(1) << wp.uint64(t))
+    for t in range(n):
+        if ((live >> wp.uint64(t)) & wp.uint64(1)) == wp.uint64(0):
+            continue
+        q = ids[t]
+        c = centre_of(q, positions)
+        v = x - c
+        d2 = dot3(v, v)
+        if d2 == wp.float64(0.0):
+            return False
+        z = c + v * ((wp.float64(radii[q]) + rs) / wp.sqrt(d2))
+        w = x - z
+        if dot3(w, w) <= thr2:
+            if not cert_covered(z, t, -1, -1, ids, n, rs, positions, radii):
+                return False
+    for a in range(n):
+        if ((live >> wp.uint64(a)) & wp.uint64(1)) == wp.uint64(0):
+            continue
+        ci = centre_of(ids[a], positions)
+        big_i = wp.float64(radii[ids[a]]) + rs
+        bi2 = big_i * big_i
+        for b in range(a + 1, n):
+            if ((live >> wp.uint64(b)) & wp.uint64(1)) == wp.uint64(0):
+                continue
+            cj = centre_of(ids[b], positions)
+            big_j = wp.float64(radii[ids[b]]) + rs
+            e = cj - ci
+            l2 = dot3(e, e)
+            if l2 == wp.float64(0.0):
+                continue
+            frac = ((bi2 - big_j * big_j) + l2) / (wp.float64(2.0) * l2)
+            rc2 = bi2 - (frac * frac) * l2
+            m = ci + e * frac
+            xm = x - m
+            tol = CERT_TINY * (bi2 + big_j * big_j)
+            if rc2 <= tol:
+                if rc2 >= -tol:
+                    # Nearly tangent: their contact point may be a free point; decline near it.
+                    near = thr + wp.float64(1.0e-5) * (big_i + big_j)
+                    if dot3(xm, xm) <= near * near:
+                        return False
+                continue
+            qe = dot3(xm, e)
+            qp = xm - e * (qe / l2)
+            qp2 = dot3(qp, qp)
+            if qp2 <= CERT_TINY * rc2:
+                # x on the circle's axis: every point of the circle about as near.
+                if (qe * qe) / l2 + rc2 * wp.float64(0.999) <= thr2:
+                    return False
+                continue
+            z = m + qp * wp.sqrt(rc2 / qp2)
+            w = x - z
+            e2 = dot3(w, w)
+            if e2 <= thr2:
+                if not cert_covered(z, a, b, -1, ids, n, rs, positions, radii):
+                    return False
+            if e2 <= thr2 * (wp.float64(1.0) + CERT_NEAR):
+                for k in range(b + 1, n):
+                    if ((live >> wp.uint64(k)) & wp.uint64(1)) == wp.uint64(0):
+                        continue
+                    ck = centre_of(ids[k], positions)
+                    big_k = wp.float64(radii[ids[k]]) + rs
+                    f = ck - ci
+                    a12 = dot3(e, f)
+                    a22 = dot3(f, f)
+                    det = l2 * a22 - a12 * a12
+                    if det <= wp.float64(1.0e-6) * l2 * a22:
+                        gk = ck - cj
+                        if a22 == wp.float64(0.0) or dot3(gk, gk) == wp.float64(0.0):
+                            continue
+                        return False
+                    b1 = ((bi2 - big_j * big_j) + l2) * wp.float64(0.5)
+                    b2 = ((bi2 - big_k * big_k) + a22) * wp.float64(0.5)
+                    al = (b1 * a22 - b2 * a12) / det
+                    be = (b2 * l2 - b1 * a12) / det
+                    w0 = e * al + f * be
+                    nrm = cross3(e, f)
+                    nn = dot3(nrm, nrm)
+                    g2 = (bi2 - dot3(w0, w0)) / nn
+                    base = ci + w0
+                    gtol = CERT_TINY * bi2 / nn
+                    if wp.abs(g2) <= gtol:
+                        # The circle nearly tangent to the third sphere: decline near their contact.
+                        wb = x - base
+                        near = thr + wp.float64(1.0e-5) * big_i
+                        if dot3(wb, wb) <= near * near:
+                            return False
+                        continue
+                    if g2 < wp.float64(0.0):
+                        continue
+                    g = wp.sqrt(g2)
+                    for s in range(2):
+                        z = base + nrm * (g * wp.float64(1 - 2 * s))
+                        w = x - z
+                        if dot3(w, w) <= thr2:
+                            if not cert_covered(z, a, b, k, ids, n, rs, positions, radii):
+                                return False
+    return True
+
+
+@wp.func
+def witness_find(v: wp.int32, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i]) -> wp.vec4i:
+    """Voxel v's stored witness, or (-2, ...) when it has none."""
+    cap = keys.shape[0]
+    s = witness_slot(v, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == v:
+            return wits[s]
+        if k == -1:
+            return wp.vec4i(-2, -1, -1, 0)
+        s = (s + 1) & (cap - 1)
+    return wp.vec4i(-2, -1, -1, 0)
+
+
+@wp.func
+def witness_store(
+    v: wp.int32, w: wp.vec4i, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i], skin: wp.array[wp.int32]
+):
+    """Voxel v's witness w (or (-2, ...): none) into its slot, taking a free one when it has none (counted); a
+    full probe run drops it. Only the thread deciding v writes v's slot in an update."""
+    cap = keys.shape[0]
+    s = witness_slot(v, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == v:
+            wits[s] = w
+            return
+        if k == -1:
+            if w[0] < 0:
+                return
+            old = wp.atomic_cas(keys, s, -1, v)
+            if old == -1 or old == v:
+                wits[s] = w
+                if old == -1:
+                    wp.atomic_add(skin, SKIN_FILLED, 1)
+                return
+        s = (s + 1) & (cap - 1)
+
+
+@wp.func
+def witness_holds(
+    x: wp.vec3d,
+    wit: wp.vec4i,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """The candidate an earlier update found x wet by (``probe_search``'s witness), recomputed from today's spheres
+    as the search computes it, is valid today. Then the search finds x wet too: its spheres are exposed and near x
+    (checked), so the search enumerates this candidate (it prunes a sphere only when another ball covers all its
+    points within rho of x, and then this one would be blocked), and it stops at a valid candidate."""
+    i = wit[0]
+    j = wit[1]
+    k = wit[2]
+    if i < 0 or i >= n or j >= n or k >= n or box.skip != 0:
+        return False
+    if exposed[i] == 0 or not gate_ok(x, i, positions, radii, box):
+        return False
+    rho = box.rho
+    rho2 = rho * rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    z = wp.vec3d(0.0)
+    if j < 0:
+        v = x - ci
+        d2 = dot3(v, v)
+        if not (d2 > wp.float64(0.0)):
+            return False
+        z = ci + v * (big_i / wp.sqrt(d2))
+    else:
+        if j <= i or exposed[j] == 0 or not gate_ok(x, j, positions, radii, box):
+            return False
+        cj = centre_of(j, positions)
+        big_j = wp.float64(radii[j]) + rho
+        cp = circle_point(x, ci, big_i, cj, big_j)
+        if cp[3] == wp.float64(0.0):
+            return False
+        z = wp.vec3d(cp[0], cp[1], cp[2])
+        if k >= 0:
+            e = x - z
+            if not (dot3(e, e) <= rho2 * (wp.float64(1.0) + SLACK)):
+                return False
+            if k <= j or exposed[k] == 0 or not gate_ok(x, k, positions, radii, box):
+                return False
+            vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
+            if vp[2, 0] == wp.float64(0.0):
+                return False
+            t = wit[3]
+            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+    w = x - z
+    if not (dot3(w, w) <= rho2):
+        return False
+    res = candidate_check(x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    return res == CANDIDATE_OK
+
+
+@wp.kernel
+def wet_skin_start(
+    n: wp.int32,
+    capacity: wp.int32,
+    cross_capacity: wp.int32,
+    # outputs
+    skin: wp.array[wp.int32],
+):
+    """One thread: this update takes a new reference (none taken yet, or ``n`` particles where the reference had
+    another count) or not, wipes the witness table (of ``capacity`` slots) when over three quarters of it are taken,
+    and clears the counters. The count is compared here, on the device, so that a graph recorded at any point
+    replays right."""
+    reset = int(0)
+    if skin[SKIN_PRIMED] == 0 or skin[SKIN_COUNT] != n:
+        reset = 1
+    skin[SKIN_COUNT] = n
+    skin[SKIN_RESET] = reset
+    skin[SKIN_KEPT] = 0
+    skin[SKIN_CERTIFIED] = 0
+    skin[SKIN_WITNESSED] = 0
+    skin[SKIN_WIPE] = 0
+    if 4 * skin[SKIN_FILLED] > 3 * capacity or skin[SKIN_PRIMED] == 0:
+        skin[SKIN_WIPE] = 1
+        skin[SKIN_FILLED] = 0
+    skin[SKIN_CROSS_KEPT] = 0
+    skin[SKIN_CROSS_WIPE] = 0
+    if 4 * skin[SKIN_CROSS_FILLED] > 3 * cross_capacity:
+        skin[SKIN_CROSS_WIPE] = 1
+
+
+@wp.kernel
+def wet_skin_moved(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    ref_pos: wp.array[wp.vec3],
+    ref_rad: wp.array[wp.float32],
+    ref_act: wp.array[wp.int32],
+    half: wp.float64,
+    # outputs
+    skin: wp.array[wp.int32],
+):
+    """One thread per particle: a particle that moved ``half`` the skin or more from the reference, changed its
+    radius, its activity or is not finite makes this update take a new reference (every kept decision dropped)."""
+    pid = wp.tid()
+    a = int(1)
+    if active.shape[0] > 0:
+        if active[pid] == 0:
+            a = 0
+    moved = int(0)
+    if a != ref_act[pid]:
+        moved = 1
+    elif a != 0:
+        if not (radii[pid] == ref_rad[pid]):
+            moved = 1
+        else:
+            p = positions[pid]
+            o = ref_pos[pid]
+            d = wp.vec3d(
+                wp.float64(p[0]) - wp.float64(o[0]),
+                wp.float64(p[1]) - wp.float64(o[1]),
+                wp.float64(p[2]) - wp.float64(o[2]),
+            )
+            if not (dot3(d, d) < half * half):
+                moved = 1
+    if moved != 0:
+        wp.atomic_max(skin, SKIN_RESET, 1)
+
+
+@wp.kernel
+def wet_skin_clear(
+    skin: wp.array[wp.int32],
+    # outputs
+    kept: wp.array[wp.uint32],
+    keys: wp.array[wp.int32],
+    cross_keys: wp.array[wp.int32],
+):
+    """One thread per word and per table slot: a new reference drops every kept dry decision and every kept
+    crossing owner (their margins were measured from the old one); a wipe, every witness (or owner)."""
+    t = wp.tid()
+    reset = skin[SKIN_RESET] != 0
+    if t < kept.shape[0]:
+        if reset:
+            kept[t] = wp.uint32(0)
+    if t < keys.shape[0]:
+        if skin[SKIN_WIPE] != 0:
+            keys[t] = -1
+    if t < cross_keys.shape[0]:
+        if reset or skin[SKIN_CROSS_WIPE] != 0:
+            cross_keys[t] = -1
+
+
+@wp.kernel
+def wet_skin_rebase(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    n: wp.int32,
+    # outputs
+    ref_pos: wp.array[wp.vec3],
+    ref_rad: wp.array[wp.float32],
+    ref_act: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
+):
+    """One thread per particle, after the classification: a new reference is this update's particles."""
+    t = wp.tid()
+    if t == 0:
+        if skin[SKIN_RESET] != 0 or skin[SKIN_CROSS_WIPE] != 0:
+            skin[SKIN_CROSS_FILLED] = 0
+    if skin[SKIN_RESET] == 0:
+        return
+    if t < n:
+        ref_pos[t] = positions[t]
+        ref_rad[t] = radii[t]
+        a = int(1)
+        if active.shape[0] > 0:
+            if active[t] == 0:
+                a = 0
+        ref_act[t] = a
+    if t == 0:
+        skin[SKIN_PRIMED] = 1
+        skin[SKIN_RESETS] = skin[SKIN_RESETS] + 1
+
+
 @wp.kernel
 def wet_classify(
     positions: wp.array[wp.vec3],
@@ -1318,17 +1809,29 @@ def wet_classify(
     exposed: wp.array[wp.int32],
     bits: wp.int32,
     capacity: wp.int32,
+    shrink: wp.float64,
+    n_particles: wp.int32,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
+    kept: wp.array[wp.uint32],
+    skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
 ):
     """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA): every voxel of the band (within rho +
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
     ``capacity`` > 0 the first ``capacity`` such voxels go to ``queue`` (their word * 32 + bit, in no set order;
     ``queued[0]``, zeroed before, counts them all) for ``wet_classify_queued``, and the thread tests the rest
-    itself. A thread sets only its own bits of ``fluid``."""
+    itself. A thread sets only its own bits of ``fluid``.
+
+    The skin (``kept`` not empty): a voxel whose bit is set in ``kept`` has a dry certificate
+    (``dry_certificate``) that still holds, unless this update takes a new reference: it stays dry untested (and
+    is counted as decided). A voxel tested dry gets a certificate when one can be made. A voxel found wet by a
+    candidate on spheres alone keeps it as its witness (``keys``, ``wits``): a later update re-checks that one
+    candidate first (``witness_holds``) and tests the voxel only when it fails."""
     t = wp.tid()
     splits = 32 / bits
     idx = t / splits
@@ -1339,28 +1842,64 @@ def wet_classify(
     unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, w) & own
     if unc == wp.uint32(0):
         return
+    skinned = kept.shape[0] > 0
+    tested = int(0)
+    if skinned:
+        if skin[SKIN_RESET] == 0:
+            keep = kept[idx] & unc
+            if keep != wp.uint32(0):
+                nk = wp.bit_count(keep)
+                unc = unc & ~keep
+                tested += nk
+                wp.atomic_add(skin, SKIN_KEPT, nk)
     r_max = wp.float64(rmax[0])
     add = wp.uint32(0)
-    tested = int(0)
+    certified = wp.uint32(0)
+    n_cert = int(0)
     wet = int(0)
+    witnessed = int(0)
     while unc != wp.uint32(0):
         b = lowest_bit(unc)
         unc = unc & (unc - wp.uint32(1))
         tested += 1
+        if skinned:
+            wit = witness_find(idx * 32 + b, keys, wits)
+            if wit[0] >= 0:
+                xw = voxel_point(wjk, b, box)
+                if witness_holds(
+                    xw, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+                ):
+                    add = add | (wp.uint32(1) << wp.uint32(b))
+                    wet += 1
+                    witnessed += 1
+                    continue
         if capacity > 0:
             slot = wp.atomic_add(queued, 0, 1)
             if slot < capacity:
                 queue[slot] = idx * 32 + b
                 continue
         x = voxel_point(wjk, b, box)
-        if probe_reaches(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+        if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
+            if skinned:
+                witness_store(idx * 32 + b, found, keys, wits, skin)
+        elif skinned:
+            witness_store(idx * 32 + b, found, keys, wits, skin)
+            if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+                certified = certified | (wp.uint32(1) << wp.uint32(b))
+                n_cert += 1
     if add != wp.uint32(0):
         if bits == 32:
             fluid[idx] = fluid[idx] | add
         else:
             wp.atomic_or(fluid, idx, add)
+    if certified != wp.uint32(0):
+        wp.atomic_or(kept, idx, certified)
+        wp.atomic_add(skin, SKIN_CERTIFIED, n_cert)
+    if witnessed > 0:
+        wp.atomic_add(skin, SKIN_WITNESSED, witnessed)
     wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
     wp.atomic_add(diag, DIAG_RESCUED, wet)
 
@@ -1378,12 +1917,18 @@ def wet_classify_queued(
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
+    shrink: wp.float64,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
+    kept: wp.array[wp.uint32],
+    skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
 ):
     """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
-    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle."""
+    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel
+    tested dry gets its certificate here, one tested wet its witness."""
     slot = wp.tid()
     if slot >= queued[0]:
         return
@@ -1392,9 +1937,17 @@ def wet_classify_queued(
     b = v - idx * 32
     wjk = word_coords(box, idx)
     x = voxel_point(wjk, b, box)
-    if probe_reaches(x, 1, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+    r_max = wp.float64(rmax[0])
+    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    if kept.shape[0] > 0:
+        witness_store(v, found, keys, wits, skin)
+    if found[0] != -2:
         wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
         wp.atomic_add(diag, DIAG_RESCUED, 1)
+    elif kept.shape[0] > 0:
+        if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+            wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
+            wp.atomic_add(skin, SKIN_CERTIFIED, 1)
 
 
 @wp.func

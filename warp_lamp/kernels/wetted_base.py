@@ -49,6 +49,38 @@ SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
 GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
+#: Spheres the skin's dry certificate lists around a voxel; with more it certifies nothing (the voxel is tested).
+CERT_LIST = 48
+CertIds = wp.types.vector(length=CERT_LIST, dtype=wp.int32)
+#: The skin's state (``WettedSurface._skin_state``, int32): reset in this update (1) or not, primed (a reference
+#: taken), dry decisions kept and certified in this update, resets since construction ...
+SKIN_RESET = wp.constant(0)
+SKIN_PRIMED = wp.constant(1)
+SKIN_KEPT = wp.constant(2)
+SKIN_CERTIFIED = wp.constant(3)
+SKIN_RESETS = wp.constant(4)
+#: ... wet decisions kept by their witness in this update, witness keys taken since the table was last wiped, and
+#: whether this update wipes it (more than three quarters full).
+SKIN_WITNESSED = wp.constant(5)
+SKIN_FILLED = wp.constant(6)
+SKIN_WIPE = wp.constant(7)
+#: ... and the particle count of the reference.
+SKIN_COUNT = wp.constant(8)
+#: ... crossings whose owner was kept in this update, owner keys taken since the owner table was last wiped, and
+#: whether this update wipes it (three quarters full; a new reference wipes it too).
+SKIN_CROSS_KEPT = wp.constant(9)
+SKIN_CROSS_FILLED = wp.constant(10)
+SKIN_CROSS_WIPE = wp.constant(11)
+N_SKIN = 12
+#: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
+WITNESS_PROBES = wp.constant(16)
+#: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
+#: much, a point within rho of the voxel is one within rho^2 (1 + CERT_NEAR); they dwarf float64 rounding.
+CERT_IN = wp.constant(wp.float64(1.0e-6))
+CERT_NEAR = wp.constant(wp.float64(1.0e-6))
+#: Near-degenerate geometry the certificate declines (it certifies nothing there): tangent balls, a voxel on a
+#: circle's axis, nearly collinear centres, a circle nearly tangent to a third sphere.
+CERT_TINY = wp.constant(wp.float64(1.0e-12))
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
 #: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
@@ -287,3 +319,13 @@ def walls_fluid(x: wp.vec3d, walls: LampWalls, rho: wp.float64) -> wp.bool:
 def virtual_point(i: wp.int32, j: wp.int32, k: wp.int32, box: WetBox) -> wp.vec3d:
     """The voxel centre (i, j, k), also beyond the box."""
     return wp.vec3d(voxel_centre(i, box.h[0]), voxel_centre(j, box.h[1]), voxel_centre(k, box.h[2]))
+
+
+@wp.func
+def witness_slot(v: wp.int32, capacity: wp.int32) -> wp.int32:
+    """The first slot of voxel v's key in a table of ``capacity`` (a power of two) slots."""
+    u = wp.uint32(v)
+    u = u ^ (u >> wp.uint32(16))
+    u = u * wp.uint32(0x45D9F3B)
+    u = u ^ (u >> wp.uint32(16))
+    return wp.int32(u & wp.uint32(capacity - 1))

@@ -8,13 +8,17 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_UNATTRIBUTED,
     FAR,
     ONES,
+    SKIN_CROSS_FILLED,
+    SKIN_CROSS_KEPT,
     WALL_OWNER,
+    WITNESS_PROBES,
     WetBox,
     low_mask,
     lowest_bit,
     row_mask,
     virtual_point,
     walls_fluid,
+    witness_slot,
     word_at,
 )
 
@@ -81,6 +85,123 @@ def nearest_in_cube(
 
 
 @wp.func
+def nearest_two_in_cube(
+    p: wp.vec3d,
+    reach: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.vec3d:
+    """``nearest_in_cube`` without walls, the same walk and rule, with the runner-up: (id, d1, d2), d2 the second
+    smallest ``|p - c| - r`` among the searched spheres (FAR with fewer than two; d1 when tied)."""
+    lo = wp.vec3i(0)
+    hi = wp.vec3i(0)
+    for a in range(3):
+        top = wp.float64(box.bin_n[a] - 1)
+        lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
+        hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
+    best = FAR
+    second = FAR
+    best_id = int(-1)
+    for bz in range(lo[2], hi[2] + 1):
+        for by in range(lo[1], hi[1] + 1):
+            for bx in range(lo[0], hi[0] + 1):
+                i = heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]
+                while i >= 0:
+                    d = sphere_distance(p, i, positions, radii)
+                    if d < best or (d == best and i < best_id):
+                        second = best
+                        best = d
+                        best_id = i
+                    elif d < second:
+                        second = d
+                    i = next_in_bin[i]
+    return wp.vec3d(wp.float64(best_id), best, second)
+
+
+@wp.func
+def owner_find(key: wp.int32, keys: wp.array[wp.int32], owners: wp.array[wp.int32]) -> wp.int32:
+    """The owner kept for crossing face ``key``, or -1."""
+    cap = keys.shape[0]
+    s = witness_slot(key, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == key:
+            return owners[s]
+        if k == -1:
+            return -1
+        s = (s + 1) & (cap - 1)
+    return -1
+
+
+@wp.func
+def owner_store(
+    key: wp.int32, pid: wp.int32, keys: wp.array[wp.int32], owners: wp.array[wp.int32], skin: wp.array[wp.int32]
+):
+    """Keep ``pid`` (-1: none) as the owner of crossing face ``key``; a full probe run drops it."""
+    cap = keys.shape[0]
+    s = witness_slot(key, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == key:
+            owners[s] = pid
+            return
+        if k == -1:
+            if pid < 0:
+                return
+            old = wp.atomic_cas(keys, s, -1, key)
+            if old == -1 or old == key:
+                owners[s] = pid
+                if old == -1:
+                    wp.atomic_add(skin, SKIN_CROSS_FILLED, 1)
+                return
+        s = (s + 1) & (cap - 1)
+
+
+@wp.func
+def nearest_kept(
+    p: wp.vec3d,
+    a: wp.int32,
+    key: wp.int32,
+    rmax: wp.float64,
+    shrink: wp.float64,
+    n_particles: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+    walls: LampWalls,
+    cross_keys: wp.array[wp.int32],
+    cross_owners: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
+) -> wp.int32:
+    """``nearest_sphere`` without walls, with the skin: the owner kept for this face since the last reference, or
+    the search, whose answer is kept when it wins by more than twice the skin. Kept, it stays the answer: between
+    the update that kept it and this one every sphere moved less than the skin (each less than half of it from the
+    reference), so every ``|p - c| - r`` changed by less than it, and the owner is still strictly the nearest (the
+    runner-up among the searched spheres, and those not searched, farther than one voxel edge, both trail it by more
+    than twice the skin)."""
+    kept = owner_find(key, cross_keys, cross_owners)
+    if kept >= 0 and kept < n_particles:
+        wp.atomic_add(skin, SKIN_CROSS_KEPT, 1)
+        return kept
+    near = box.h[a]
+    reach = (near + rmax) * wp.float64(1.000000001)
+    two = nearest_two_in_cube(p, reach, positions, radii, heads, next_in_bin, box)
+    pid = wp.int32(two[0])
+    if pid >= 0:
+        if two[1] <= near:
+            lead = wp.min(two[2], near) - two[1]
+            if lead > wp.float64(2.0) * shrink * (wp.float64(1.0) + wp.float64(1.0e-6)) + wp.float64(1.0e-12) * near:
+                owner_store(key, pid, cross_keys, cross_owners, skin)
+            return pid
+    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box, walls)
+
+
+@wp.func
 def nearest_sphere(
     p: wp.vec3d,
     a: wp.int32,
@@ -122,12 +243,17 @@ def load_crossing(
     rmax: wp.array[wp.float32],
     box: WetBox,
     walls: LampWalls,
+    shrink: wp.float64,
+    n_particles: wp.int32,
     counts: wp.array[wp.int64],
     hits: wp.array[wp.int32],
     rays: wp.array[wp.int32],
     diag: wp.array[wp.int32],
     owners: wp.array[wp.int32],
     wall_counts: wp.array[wp.int64],
+    cross_keys: wp.array[wp.int32],
+    cross_owners: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
 ):
     """A crossing at p on a row along axis a: fluid to dry going +a (enters = 1, the low lamp's +1) or dry to
     fluid (the high lamp's -1), to the nearest sphere, ``|p - c| - r`` (ties to the lowest index). With walls: the
@@ -136,7 +262,8 @@ def load_crossing(
     the dry fillet between a body and its platen loads the platen where the platen is nearer. A wall whose normal
     has no a-component never takes an axis-a crossing, so on an axis no wall cuts the particles' counts still sum
     to zero. Integer counts, so the order of the atomics cannot change
-    the result."""
+    the result. With the skin (``cross_keys`` not empty) and no walls, the owner may be a kept one
+    (``nearest_kept``)."""
     lamp = 2 * a
     sign = int(1)
     if enters != 0:
@@ -146,7 +273,28 @@ def load_crossing(
         sign = -1
     if ((box.lamp_mask >> lamp) & 1) == 0:
         return
-    pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box, walls)
+    pid = int(-1)
+    if cross_keys.shape[0] > 0 and walls.n == 0:
+        key = box.face_offset[a] + ray * (box.n[a] + 1) + face
+        pid = nearest_kept(
+            p,
+            a,
+            key,
+            wp.float64(rmax[0]),
+            shrink,
+            n_particles,
+            positions,
+            radii,
+            heads,
+            next_in_bin,
+            box,
+            walls,
+            cross_keys,
+            cross_owners,
+            skin,
+        )
+    else:
+        pid = nearest_sphere(p, a, wp.float64(rmax[0]), positions, radii, heads, next_in_bin, box, walls)
     if walls.n > 0:
         ds = FAR
         if pid >= 0:
@@ -191,6 +339,8 @@ def wet_cross(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
+    shrink: wp.float64,
+    n_particles: wp.int32,
     # outputs
     counts: wp.array[wp.int64],
     hits: wp.array[wp.int32],
@@ -198,6 +348,9 @@ def wet_cross(
     diag: wp.array[wp.int32],
     owners: wp.array[wp.int32],
     wall_counts: wp.array[wp.int64],
+    cross_keys: wp.array[wp.int32],
+    cross_owners: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
 ):
     """Crossings on the faces of all three axes in one launch (threads from ``first[a]`` on are axis a's): one
     thread per ``bits`` bits of a face word, so that a thread makes at most ``bits`` nearest-sphere searches (the
@@ -316,12 +469,17 @@ def wet_cross(
             rmax,
             box,
             walls,
+            shrink,
+            n_particles,
             counts,
             hits,
             rays,
             diag,
             owners,
             wall_counts,
+            cross_keys,
+            cross_owners,
+            skin,
         )
 
 

@@ -49,6 +49,7 @@ __all__ = [
     "attribution_bound",
     "band_radius",
     "dilation_table",
+    "dry_certificate",
     "frame_walls",
     "voxel_diagonal",
     "wetted_reference",
@@ -973,3 +974,126 @@ def wetted_reference(
         outside=outside,
         tight=tight,
     )
+
+
+def dry_certificate(x, centers, radii, rho: float, shrink: float) -> bool:
+    """The skin's dry certificate at point x (frame coordinates) [m]: every point within rho of x lies inside some
+    ball of radius ``r + rho - shrink`` about the given centres, checked as the kernels do it, in float64 loops.
+
+    The point of the shrunk balls' free set nearest to x is x itself, a radial projection onto a sphere, the point
+    of a pairwise circle nearest to x, or a triple point; each within ``rho^2 (1 + 1e-6)`` of x must lie inside
+    another ball by 1e-6 (relative, squared). Declined (False): more than 48 spheres within ``r + rho - shrink +
+    rho`` of x, x on a circle's axis, nearly tangent balls or nearly collinear triples near x (the kernels' rules;
+    no pruning of covered spheres here, which changes no answer).
+
+    Args:
+        x: The point, 3 values [m].
+        centers: Sphere centres, shape (N, 3) [m] (those the kernels bin: active, finite, near the box).
+        radii: Radii, shape (N,) [m].
+        rho: Probe radius [m].
+        shrink: The skin distance [m].
+    """
+    x = np.asarray(x, dtype=np.float64)
+    c = np.asarray(centers, dtype=np.float64)
+    r = np.asarray(radii, dtype=np.float64)
+    rs = rho - shrink
+    thr2 = rho * rho * (1.0 + 1e-6)
+    thr = np.sqrt(thr2)
+    big = r + rs
+    lim = (big + thr) * (1.0 + SLACK)
+    near = [q for q in range(len(r)) if _dot(x - c[q], x - c[q]) < lim[q] * lim[q]]
+    if len(near) > 48:
+        return False
+    cc = [c[q] for q in near]
+    bb = [float(big[q]) for q in near]
+    n = len(near)
+
+    def covered(z, skip):
+        for t in range(n):
+            if t not in skip:
+                v = z - cc[t]
+                if _dot(v, v) < bb[t] * bb[t] * (1.0 - 1e-6):
+                    return True
+        return False
+
+    inside = False
+    for t in range(n):
+        d2 = _dot(x - cc[t], x - cc[t])
+        if d2 < bb[t] * bb[t] * (1.0 - 1e-6):
+            inside = True
+            if np.sqrt(d2) + thr < bb[t] * (1.0 - 1e-6):
+                return True
+    if not inside:
+        return False
+    for t in range(n):
+        v = x - cc[t]
+        d2 = _dot(v, v)
+        if d2 == 0.0:
+            return False
+        z = cc[t] + v * (bb[t] / np.sqrt(d2))
+        if _dot(x - z, x - z) <= thr2 and not covered(z, (t,)):
+            return False
+    tiny = 1e-12
+    for a in range(n):
+        ci, bi = cc[a], bb[a]
+        bi2 = bi * bi
+        for b in range(a + 1, n):
+            cj, bj = cc[b], bb[b]
+            e = cj - ci
+            l2 = _dot(e, e)
+            if l2 == 0.0:
+                continue
+            frac = ((bi2 - bj * bj) + l2) / (2.0 * l2)
+            rc2 = bi2 - (frac * frac) * l2
+            m = ci + e * frac
+            xm = x - m
+            tol = tiny * (bi2 + bj * bj)
+            if rc2 <= tol:
+                near_t = thr + 1e-5 * (bi + bj)
+                if rc2 >= -tol and _dot(xm, xm) <= near_t * near_t:
+                    return False
+                continue
+            qe = _dot(xm, e)
+            qp = xm - e * (qe / l2)
+            qp2 = _dot(qp, qp)
+            if qp2 <= tiny * rc2:
+                if (qe * qe) / l2 + rc2 * 0.999 <= thr2:
+                    return False
+                continue
+            z = m + qp * np.sqrt(rc2 / qp2)
+            e2 = _dot(x - z, x - z)
+            if e2 <= thr2 and not covered(z, (a, b)):
+                return False
+            if e2 > thr2 * (1.0 + 1e-6):
+                continue
+            for k in range(b + 1, n):
+                ck, bk = cc[k], bb[k]
+                f = ck - ci
+                a12 = _dot(e, f)
+                a22 = _dot(f, f)
+                det = l2 * a22 - a12 * a12
+                if det <= 1e-6 * l2 * a22:
+                    if a22 == 0.0 or _dot(ck - cj, ck - cj) == 0.0:
+                        continue
+                    return False
+                b1 = ((bi2 - bj * bj) + l2) * 0.5
+                b2 = ((bi2 - bk * bk) + a22) * 0.5
+                al = (b1 * a22 - b2 * a12) / det
+                be = (b2 * l2 - b1 * a12) / det
+                w0 = e * al + f * be
+                nrm = _cross(e, f)
+                nn = _dot(nrm, nrm)
+                g2 = (bi2 - _dot(w0, w0)) / nn
+                base = ci + w0
+                if abs(g2) <= tiny * bi2 / nn:
+                    near_t = thr + 1e-5 * bi
+                    if _dot(x - base, x - base) <= near_t * near_t:
+                        return False
+                    continue
+                if g2 < 0.0:
+                    continue
+                g = np.sqrt(g2)
+                for z in (base + nrm * g, base - nrm * g):
+                    if _dot(x - z, x - z) <= thr2 and not covered(z, (a, b, k)):
+                        return False
+    return True
