@@ -117,7 +117,8 @@ def main() -> int:
     for name, t in share.items():
         print(
             f"mid-cut, {name}: cycle {t['cycle_s'] * 1e6:.1f} us, without the lamp "
-            f"{t['cycle_without_lamp_s'] * 1e6:.1f} us, lamp share {t['lamp_share']:.1%} (update every {t['update_every']} cycles)"
+            f"{t['cycle_without_lamp_s'] * 1e6:.1f} us, lamp share {t['lamp_share']:.1%} "
+            f"(update every {t['update_every']} cycles)"
         )
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
