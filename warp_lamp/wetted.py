@@ -881,6 +881,7 @@ class WettedSurface:
                     self.queue,
                     self.queued,
                     self.skin,
+                    n,
                 ],
                 outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
                 device=d,

@@ -1862,6 +1862,13 @@ def wet_classify(
         b = lowest_bit(unc)
         unc = unc & (unc - wp.uint32(1))
         tested += 1
+        # Queued first, witness or not: a witness's re-check walks the neighbour bins as a test does, and in
+        # these mostly idle threads it cost more than the tests it saved (measured on an H200).
+        if capacity > 0:
+            slot = wp.atomic_add(queued, 0, 1)
+            if slot < capacity:
+                queue[slot] = idx * 32 + b
+                continue
         if skinned:
             wit = witness_find(idx * 32 + b, keys, wits)
             if wit[0] >= 0:
@@ -1873,11 +1880,6 @@ def wet_classify(
                     wet += 1
                     witnessed += 1
                     continue
-        if capacity > 0:
-            slot = wp.atomic_add(queued, 0, 1)
-            if slot < capacity:
-                queue[slot] = idx * 32 + b
-                continue
         x = voxel_point(wjk, b, box)
         found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
         if found[0] != -2:
@@ -1918,6 +1920,7 @@ def wet_classify_queued(
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
     shrink: wp.float64,
+    n_particles: wp.int32,
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -1927,8 +1930,8 @@ def wet_classify_queued(
     wits: wp.array[wp.vec4i],
 ):
     """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
-    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel
-    tested dry gets its certificate here, one tested wet its witness."""
+    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel's
+    witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its witness."""
     slot = wp.tid()
     if slot >= queued[0]:
         return
@@ -1938,6 +1941,16 @@ def wet_classify_queued(
     wjk = word_coords(box, idx)
     x = voxel_point(wjk, b, box)
     r_max = wp.float64(rmax[0])
+    if kept.shape[0] > 0:
+        wit = witness_find(v, keys, wits)
+        if wit[0] >= 0:
+            if witness_holds(
+                x, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+            ):
+                wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+                wp.atomic_add(diag, DIAG_RESCUED, 1)
+                wp.atomic_add(skin, SKIN_WITNESSED, 1)
+                return
     found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
     if kept.shape[0] > 0:
         witness_store(v, found, keys, wits, skin)

@@ -7,7 +7,7 @@
 # table last; last of all (after only, cut at 100 s): the rock cut's DEM cycle with and without the lamp, its share.
 # About 7-8 minutes on an H100 (each step is cut at its timeout; the after bench's includes the three modules'
 # compile), plus the DEM modules' compile for the share if no earlier part compiled them. To shorten: drop the
-# tests (run bench/gpu/parts/wetted_cuda_tests.sh elsewhere) or the share.
+# tests (run bench/gpu/parts/wetted_cuda_tests.sh elsewhere) or the share: WETTED32_SKIP="profile tests".
 LOG="$OUT/wetted32.log"
 : >"$LOG"
 T=/tmp/wetted32
@@ -37,11 +37,12 @@ fi
 run "after: bench" "$NOW" 240 python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 \
   --repeats 20 --out $T/after_bench.json
 run "after: hashes" "$NOW" 45 python3 bench/experiments/wetted32.py hashes --device cuda:0 --out $T/after_hashes.json
-run "after: exact test's parts" "$NOW" 40 python3 bench/experiments/wetted32.py profile --device cuda:0 --repeats 20 \
+skip() { case " ${WETTED32_SKIP:-} " in *" $1 "*) return 0 ;; esac; return 1; }
+skip profile || run "after: exact test's parts" "$NOW" 40 python3 bench/experiments/wetted32.py profile --device cuda:0 --repeats 20 \
   --out $T/profile.json
 run "after: rock cut slab, stages" "$NOW" 40 python3 bench/experiments/rockcut_wetted_profile.py --device cuda:0 \
   --out $T/rockcut.json
-run "after: CUDA wetted and walls tests" "$NOW" 100 python3 -m pytest -q -x -p no:cacheprovider -rfEs -k cuda \
+skip tests || run "after: CUDA wetted and walls tests" "$NOW" 100 python3 -m pytest -q -x -p no:cacheprovider -rfEs -k cuda \
   tests/test_wetted.py tests/test_walls.py
 run "after: rock cut cycle, the lamp's share" "$NOW" 80 python3 bench/experiments/rockcut_share.py --device cuda:0 \
   --out $T/rockcut_share.json
