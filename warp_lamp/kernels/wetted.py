@@ -562,6 +562,33 @@ def vertex_walk(
 
 
 @wp.func
+def cert_cap_covered(
+    x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, reach: wp.float64
+) -> wp.bool:
+    """``cap_covered`` for given balls: every point of sphere (ci, big_i) within ``reach`` of x lies inside ball
+    (cj, big_j), by 1e-6 in squared distance."""
+    v = x - ci
+    d2 = dot3(v, v)
+    e = cj - ci
+    l2 = dot3(e, e)
+    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
+        return False
+    d = wp.sqrt(d2)
+    el = wp.sqrt(l2)
+    ca = (big_i * big_i + d2 - reach * reach) / (wp.float64(2.0) * big_i * d)
+    if ca >= wp.float64(1.0):
+        return False
+    far2 = (big_i + el) * (big_i + el)
+    if ca > wp.float64(-1.0):
+        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
+        if cg + ca >= wp.float64(0.0):
+            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
+            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
+            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
+    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+
+
+@wp.func
 def cap_covered(
     x: wp.vec3d, i: wp.int32, j: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
 ) -> wp.bool:
@@ -574,28 +601,9 @@ def cap_covered(
     if same_sphere(j, i, positions, radii):
         return False
     rho = box.rho
-    ci = centre_of(i, positions)
-    big_i = wp.float64(radii[i]) + rho
-    big_j = wp.float64(radii[j]) + rho
-    v = x - ci
-    d2 = dot3(v, v)
-    e = centre_of(j, positions) - ci
-    l2 = dot3(e, e)
-    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
-        return False
-    d = wp.sqrt(d2)
-    el = wp.sqrt(l2)
-    ca = (big_i * big_i + d2 - rho * rho) / (wp.float64(2.0) * big_i * d)
-    if ca >= wp.float64(1.0):
-        return False
-    far2 = (big_i + el) * (big_i + el)
-    if ca > wp.float64(-1.0):
-        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
-        if cg + ca >= wp.float64(0.0):
-            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
-            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
-            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
-    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
+    return cert_cap_covered(
+        x, centre_of(i, positions), wp.float64(radii[i]) + rho, centre_of(j, positions), wp.float64(radii[j]) + rho, rho
+    )
 
 
 @wp.func
@@ -1368,33 +1376,6 @@ def cert_covered(
             if dot3(v, v) < big * big * (wp.float64(1.0) - CERT_IN):
                 return True
     return False
-
-
-@wp.func
-def cert_cap_covered(
-    x: wp.vec3d, ci: wp.vec3d, big_i: wp.float64, cj: wp.vec3d, big_j: wp.float64, reach: wp.float64
-) -> wp.bool:
-    """``cap_covered`` for given balls: every point of sphere (ci, big_i) within ``reach`` of x lies inside ball
-    (cj, big_j), by 1e-6 in squared distance."""
-    v = x - ci
-    d2 = dot3(v, v)
-    e = cj - ci
-    l2 = dot3(e, e)
-    if d2 == wp.float64(0.0) or l2 == wp.float64(0.0):
-        return False
-    d = wp.sqrt(d2)
-    el = wp.sqrt(l2)
-    ca = (big_i * big_i + d2 - reach * reach) / (wp.float64(2.0) * big_i * d)
-    if ca >= wp.float64(1.0):
-        return False
-    far2 = (big_i + el) * (big_i + el)
-    if ca > wp.float64(-1.0):
-        cg = wp.clamp(dot3(v, e) / (d * el), wp.float64(-1.0), wp.float64(1.0))
-        if cg + ca >= wp.float64(0.0):
-            sa = wp.sqrt(wp.float64(1.0) - ca * ca)
-            sg = wp.sqrt(wp.max(wp.float64(1.0) - cg * cg, wp.float64(0.0)))
-            far2 = (big_i * big_i + l2) - wp.float64(2.0) * big_i * el * (cg * ca - sg * sa)
-    return far2 < big_j * big_j * (wp.float64(1.0) - wp.float64(1.0e-6))
 
 
 @wp.func
