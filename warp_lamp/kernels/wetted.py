@@ -58,7 +58,6 @@ from warp_lamp.kernels.wetted_base import (
     SLACK,
     WALL_SLACK,
     WALL_TAG,
-    WITNESS_PROBES,
     BinSpan,
     CertIds,
     Chord,
@@ -68,6 +67,8 @@ from warp_lamp.kernels.wetted_base import (
     GatherIds,
     NearList,
     WetBox,
+    bin_head,
+    bin_span,
     centre_offset,
     cross3,
     dot3,
@@ -75,6 +76,8 @@ from warp_lamp.kernels.wetted_base import (
     lowest_bit,
     row_mask,
     span_from,
+    table_claim,
+    table_find,
     virtual_point,
     voxel_centre,
     wall_face_point,
@@ -83,7 +86,6 @@ from warp_lamp.kernels.wetted_base import (
     walls_allow,
     walls_corner,
     walls_fluid,
-    witness_slot,
     word_at,
     word_coords,
 )
@@ -107,22 +109,6 @@ def outside_ok(walls: LampWalls, thr: wp.float64, ijk: wp.vec3i, box: WetBox) ->
 def centre_of(i: wp.int32, positions: wp.array[wp.vec3]) -> wp.vec3d:
     p = positions[i]
     return wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
-
-
-@wp.func
-def bin_span(p: wp.vec3d, reach: wp.float64, box: WetBox) -> BinSpan:
-    """The bins that the cube p +- reach touches (clamped: far spheres sit in the edge bins)."""
-    out = BinSpan()
-    for a in range(3):
-        top = wp.float64(box.bin_n[a] - 1)
-        out.lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
-        out.hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
-    return out
-
-
-@wp.func
-def bin_head(bx: wp.int32, by: wp.int32, bz: wp.int32, box: WetBox, heads: wp.array[wp.int32]) -> wp.int32:
-    return heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]
 
 
 @wp.func
@@ -1550,16 +1536,10 @@ def dry_certificate(
 @wp.func
 def witness_find(v: wp.int32, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i]) -> wp.vec4i:
     """Voxel v's stored witness, or (-2, ...) when it has none."""
-    cap = keys.shape[0]
-    s = witness_slot(v, cap)
-    for _p in range(WITNESS_PROBES):
-        k = keys[s]
-        if k == v:
-            return wits[s]
-        if k == -1:
-            return wp.vec4i(-2, -1, -1, 0)
-        s = (s + 1) & (cap - 1)
-    return wp.vec4i(-2, -1, -1, 0)
+    s = table_find(v, keys)
+    if s < 0:
+        return wp.vec4i(-2, -1, -1, 0)
+    return wits[s]
 
 
 @wp.func
@@ -1568,23 +1548,9 @@ def witness_store(
 ):
     """Voxel v's witness w (or (-2, ...): none) into its slot, taking a free one when it has none (counted); a
     full probe run drops it. Only the thread deciding v writes v's slot in an update."""
-    cap = keys.shape[0]
-    s = witness_slot(v, cap)
-    for _p in range(WITNESS_PROBES):
-        k = keys[s]
-        if k == v:
-            wits[s] = w
-            return
-        if k == -1:
-            if w[0] < 0:
-                return
-            old = wp.atomic_cas(keys, s, -1, v)
-            if old == -1 or old == v:
-                wits[s] = w
-                if old == -1:
-                    wp.atomic_add(skin, SKIN_FILLED, 1)
-                return
-        s = (s + 1) & (cap - 1)
+    s = table_claim(v, w[0] >= 0, keys, skin, SKIN_FILLED)
+    if s >= 0:
+        wits[s] = w
 
 
 @wp.func

@@ -329,3 +329,59 @@ def witness_slot(v: wp.int32, capacity: wp.int32) -> wp.int32:
     u = u * wp.uint32(0x45D9F3B)
     u = u ^ (u >> wp.uint32(16))
     return wp.int32(u & wp.uint32(capacity - 1))
+
+
+@wp.func
+def table_find(key: wp.int32, keys: wp.array[wp.int32]) -> wp.int32:
+    """The slot holding ``key`` in an open-addressed table (``keys``: -1 free; linear probing from
+    ``witness_slot``, at most ``WITNESS_PROBES`` slots), or -1."""
+    cap = keys.shape[0]
+    s = witness_slot(key, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == key:
+            return s
+        if k == -1:
+            return -1
+        s = (s + 1) & (cap - 1)
+    return -1
+
+
+@wp.func
+def table_claim(
+    key: wp.int32, claim: wp.bool, keys: wp.array[wp.int32], skin: wp.array[wp.int32], filled: wp.int32
+) -> wp.int32:
+    """``table_find``'s slot for ``key``, or with ``claim`` a free one taken for it (``skin[filled]`` counts the
+    slots taken); -1 when ``key`` has none and is not to claim one, or when a full probe run finds no slot."""
+    cap = keys.shape[0]
+    s = witness_slot(key, cap)
+    for _p in range(WITNESS_PROBES):
+        k = keys[s]
+        if k == key:
+            return s
+        if k == -1:
+            if not claim:
+                return -1
+            old = wp.atomic_cas(keys, s, -1, key)
+            if old == -1 or old == key:
+                if old == -1:
+                    wp.atomic_add(skin, filled, 1)
+                return s
+        s = (s + 1) & (cap - 1)
+    return -1
+
+
+@wp.func
+def bin_span(p: wp.vec3d, reach: wp.float64, box: WetBox) -> BinSpan:
+    """The bins that the cube p +- reach touches (clamped: far spheres sit in the edge bins)."""
+    out = BinSpan()
+    for a in range(3):
+        top = wp.float64(box.bin_n[a] - 1)
+        out.lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
+        out.hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
+    return out
+
+
+@wp.func
+def bin_head(bx: wp.int32, by: wp.int32, bz: wp.int32, box: WetBox, heads: wp.array[wp.int32]) -> wp.int32:
+    return heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]

@@ -11,14 +11,16 @@ from warp_lamp.kernels.wetted_base import (
     SKIN_CROSS_FILLED,
     SKIN_CROSS_KEPT,
     WALL_OWNER,
-    WITNESS_PROBES,
     WetBox,
+    bin_head,
+    bin_span,
     low_mask,
     lowest_bit,
     row_mask,
+    table_claim,
+    table_find,
     virtual_point,
     walls_fluid,
-    witness_slot,
     word_at,
 )
 
@@ -62,18 +64,13 @@ def nearest_in_cube(
 ) -> wp.int32:
     """Among binned spheres with centres in the bins that the cube p +- reach touches, less those buried in a wall:
     the smallest |p - c| - r, ties to the lowest index; -1 if there are none."""
-    lo = wp.vec3i(0)
-    hi = wp.vec3i(0)
-    for a in range(3):
-        top = wp.float64(box.bin_n[a] - 1)
-        lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
-        hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
+    span = bin_span(p, reach, box)
     best = FAR
     best_id = int(-1)
-    for bz in range(lo[2], hi[2] + 1):
-        for by in range(lo[1], hi[1] + 1):
-            for bx in range(lo[0], hi[0] + 1):
-                i = heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
                 while i >= 0:
                     d = sphere_distance(p, i, positions, radii)
                     if d < best or (d == best and i < best_id):
@@ -96,19 +93,14 @@ def nearest_two_in_cube(
 ) -> wp.vec3d:
     """``nearest_in_cube`` without walls, the same walk and rule, with the runner-up: (id, d1, d2), d2 the second
     smallest ``|p - c| - r`` among the searched spheres (FAR with fewer than two; d1 when tied)."""
-    lo = wp.vec3i(0)
-    hi = wp.vec3i(0)
-    for a in range(3):
-        top = wp.float64(box.bin_n[a] - 1)
-        lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
-        hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
+    span = bin_span(p, reach, box)
     best = FAR
     second = FAR
     best_id = int(-1)
-    for bz in range(lo[2], hi[2] + 1):
-        for by in range(lo[1], hi[1] + 1):
-            for bx in range(lo[0], hi[0] + 1):
-                i = heads[(bz * box.bin_n[1] + by) * box.bin_n[0] + bx]
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                i = bin_head(bx, by, bz, box, heads)
                 while i >= 0:
                     d = sphere_distance(p, i, positions, radii)
                     if d < best or (d == best and i < best_id):
@@ -124,16 +116,10 @@ def nearest_two_in_cube(
 @wp.func
 def owner_find(key: wp.int32, keys: wp.array[wp.int32], owners: wp.array[wp.int32]) -> wp.int32:
     """The owner kept for crossing face ``key``, or -1."""
-    cap = keys.shape[0]
-    s = witness_slot(key, cap)
-    for _p in range(WITNESS_PROBES):
-        k = keys[s]
-        if k == key:
-            return owners[s]
-        if k == -1:
-            return -1
-        s = (s + 1) & (cap - 1)
-    return -1
+    s = table_find(key, keys)
+    if s < 0:
+        return -1
+    return owners[s]
 
 
 @wp.func
@@ -141,23 +127,9 @@ def owner_store(
     key: wp.int32, pid: wp.int32, keys: wp.array[wp.int32], owners: wp.array[wp.int32], skin: wp.array[wp.int32]
 ):
     """Keep ``pid`` (-1: none) as the owner of crossing face ``key``; a full probe run drops it."""
-    cap = keys.shape[0]
-    s = witness_slot(key, cap)
-    for _p in range(WITNESS_PROBES):
-        k = keys[s]
-        if k == key:
-            owners[s] = pid
-            return
-        if k == -1:
-            if pid < 0:
-                return
-            old = wp.atomic_cas(keys, s, -1, key)
-            if old == -1 or old == key:
-                owners[s] = pid
-                if old == -1:
-                    wp.atomic_add(skin, SKIN_CROSS_FILLED, 1)
-                return
-        s = (s + 1) & (cap - 1)
+    s = table_claim(key, pid >= 0, keys, skin, SKIN_CROSS_FILLED)
+    if s >= 0:
+        owners[s] = pid
 
 
 @wp.func
