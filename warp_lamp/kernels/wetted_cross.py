@@ -133,6 +133,30 @@ def owner_store(
 
 
 @wp.func
+def nearest_beyond(
+    p: wp.vec3d,
+    a: wp.int32,
+    pid: wp.int32,
+    d1: wp.float64,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.int32:
+    """The second search of a crossing whose first (within one voxel edge) found sphere ``pid`` at ``d1`` beyond it,
+    or none (pid < 0). The answer is no farther than d1, so every sphere that could beat or tie it is centred within
+    d1 + r_max of p: where d1 is under the bound B_a the cube shrinks to that (the same answer and tie; the slowest
+    crossings walked the B_a + r_max cube's 27 to 64 bins), else the bound's cube as before."""
+    reach = box.bound[a] + rmax
+    if pid >= 0 and d1 < box.bound[a]:
+        reach = (d1 + rmax) * wp.float64(1.000000001)
+    return nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box, walls)
+
+
+@wp.func
 def nearest_kept(
     p: wp.vec3d,
     a: wp.int32,
@@ -170,7 +194,7 @@ def nearest_kept(
             if lead > wp.float64(2.0) * shrink * (wp.float64(1.0) + wp.float64(1.0e-6)) + wp.float64(1.0e-12) * near:
                 owner_store(key, pid, cross_keys, cross_owners, skin)
             return pid
-    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box, walls)
+    return nearest_beyond(p, a, pid, two[1], rmax, positions, radii, heads, next_in_bin, box, walls)
 
 
 @wp.func
@@ -195,10 +219,12 @@ def nearest_sphere(
     near = box.h[a]
     reach = (near + rmax) * wp.float64(1.000000001)
     pid = nearest_in_cube(p, reach, positions, radii, heads, next_in_bin, box, walls)
+    d1 = FAR
     if pid >= 0:
-        if sphere_distance(p, pid, positions, radii) <= near:
+        d1 = sphere_distance(p, pid, positions, radii)
+        if d1 <= near:
             return pid
-    return nearest_in_cube(p, box.bound[a] + rmax, positions, radii, heads, next_in_bin, box, walls)
+    return nearest_beyond(p, a, pid, d1, rmax, positions, radii, heads, next_in_bin, box, walls)
 
 
 @wp.func

@@ -1,0 +1,56 @@
+"""A fixed workload for Nsight Compute: the SphereTest specimen at 4 cells per diameter, updated a few times in the
+mode named on the command line (``area``: sub-points D = 4 with the deep gather; ``wetted``: the wetted surface
+from scratch, rho = r-bar), so that ``ncu -k regex:...`` can profile its heaviest kernels (``bench/gpu/parts/ncu.sh``).
+
+    python bench/experiments/ncu_probe.py area|wetted [--updates 6]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import warp as wp
+
+import warp_lamp as wl
+from warp_lamp.scenes import scene_sphere_specimen
+from warp_lamp.wetted import WettedSurface
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("mode", choices=("area", "wetted"))
+    ap.add_argument("--updates", type=int, default=6)
+    ap.add_argument("--device", default="cuda:0")
+    args = ap.parse_args()
+    wp.init()
+    device = wp.get_device(args.device)
+    sc = scene_sphere_specimen()
+    if args.mode == "area":
+        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4)
+        lamp = wl.ShiningLamp(
+            grid, device=device, criterion="area", resolver="subpoints", depth_slots=4, subpoints=8, gather="deep"
+        )
+        pos = wp.array(grid.to_frame(sc.centers).astype(np.float32), dtype=wp.vec3, device=device)
+        rad = wp.array(sc.radii.astype(np.float32), dtype=wp.float32, device=device)
+
+        def update():
+            lamp.update(pos, rad, in_frame=True)
+    else:
+        rho = float(sc.radii.mean())
+        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=3.0 * rho)
+        surf = WettedSurface(grid, probe_radius=rho, device=device)
+        pos = wp.array((sc.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
+        rad = wp.array(sc.radii.astype(np.float32), dtype=wp.float32, device=device)
+
+        def update():
+            surf.update(pos, rad)
+
+    for _ in range(args.updates):
+        update()
+    wp.synchronize_device(device)
+    print(f"ncu_probe {args.mode}: {args.updates} updates on {device}")
+
+
+if __name__ == "__main__":
+    main()
