@@ -90,13 +90,14 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
     return d
 
 
-#: (threads per sphere, bits per thread, near list, prune from, exact-test queue): the tests queued or not, the
-#: queue too small for the band (the rest tested by the classify threads), each path of the exact test.
+#: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list): the tests
+#: queued or not, the queue too small for the band (the rest tested by the classify threads), each path of the exact
+#: test; the crossings listed for a thread each, none listed, or the list too small (the rest loaded where found).
 DECOMPOSITIONS = (
-    (3, 8, 0, 0, 1 << 20, 128),
-    (8, 1, 2, 0, 300, 0),
-    (1, 32, 64, 65, 0, 5),
-    (1, 32, 64, 0, 1 << 20, 128),
+    (3, 8, 0, 0, 1 << 20, 128, 1 << 20),
+    (8, 1, 2, 0, 300, 0, 0),
+    (1, 32, 64, 65, 0, 5, 37),
+    (1, 32, 64, 0, 1 << 20, 128, 0),
 )
 
 
@@ -113,15 +114,20 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
         assert rho == 0.0 or d.rescued > 500  # the exact test decided many voxels
         assert sum(len(ref.crossings[a]["face"]) for a in range(3)) > 1000
     # Every thread decomposition (threads per sphere, bits per crossing thread, the exact tests queued, with the
-    # queue overflowing or not) and every path of the exact test (its local list of near spheres cut to 0 or 2:
+    # queue overflowing or not), every path of the exact test (its local list of near spheres cut to 0 or 2:
     # the second gather and the bin-walk search; no pruning of covered spheres; the spheres gathered once per point
-    # for its candidates' searches, none or only 5 of them: the bins walked per candidate) give the same answer.
-    for slices, bits, near, prune, capacity, gather in DECOMPOSITIONS:
+    # for its candidates' searches, none or only 5 of them: the bins walked per candidate) and the crossings listed
+    # or not (the list overflowing) give the same answer.
+    for slices, bits, near, prune, capacity, gather, listed in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
         surface._exact_queue(capacity)
+        surface._cross_list(listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
-        assert_matches(surface, ref)
+        d = assert_matches(surface, ref)
+        # The list took what it could hold: all the sphere crossings (over 1000 here), or 37 of them.
+        found = sum(len(ref.crossings[a]["face"]) for a in range(3))
+        assert d.crossings_listed == (found if listed == 1 << 20 else min(listed, found))
 
 
 def test_float64_inputs_differ_only_where_flagged(device, rng):
@@ -748,10 +754,11 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune, capacity, gather in DECOMPOSITIONS:
+    for slices, bits, near, prune, capacity, gather, listed in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
         surface._exact_queue(capacity)
+        surface._cross_list(listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
 

@@ -7,7 +7,7 @@ import warp as wp
 import warp_lamp as wl
 from warp_lamp.reference.wetted import dry_certificate
 from warp_lamp.scenes import scene_cavity_block, scene_overlapping_polydisperse
-from warp_lamp.wetted import WettedSurface, exact_queue_capacity, skin_distance, unpack_bits
+from warp_lamp.wetted import WettedSurface, cross_list_capacity, exact_queue_capacity, skin_distance, unpack_bits
 
 RHO = 0.35  # above the cavity block's window (0.25 at r = 0.45): its cavity is sealed
 H = 0.25
@@ -64,8 +64,10 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
     skinned = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto", walls=walls)
     fresh = WettedSurface(grid, probe_radius=RHO, device=device, walls=walls)
     if packed:
-        # CUDA's layout on any device: the exact tests queued one per thread, 4 bits per classify thread.
+        # CUDA's layout on any device: the exact tests queued one per thread, the crossings listed one per thread
+        # (their owners kept by the skin there too), 4 bits per classify thread.
         skinned._exact_queue(exact_queue_capacity(skinned.shape, None))
+        skinned._cross_list(cross_list_capacity(skinned._faces, None))
         skinned._bits = 4
     kept, witnessed, owned, opened = [], [], [], None
     for step in range(steps):
@@ -106,7 +108,8 @@ def test_skin_bitwise_over_a_dem_run(device):
 
 
 def test_skin_bitwise_with_queued_tests(device):
-    """The same run with the exact tests queued and 4 bits per classify thread (CUDA's layout): still bitwise."""
+    """The same run with the exact tests queued, the crossings listed and 4 bits per classify thread (CUDA's
+    layout): still bitwise."""
     dem_run(device, steps=14, seed=5, packed=True)
 
 

@@ -100,6 +100,11 @@ SKIN_BYTES_PER_PARTICLE = 20
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
 EXACT_QUEUE_MIN = 4096
+#: The crossing list (CUDA) holds one crossing per this many voxel faces (the bench's scenes cross about one face in
+#: 60 to 110; past the list the crossings are loaded where they are found) ...
+CROSS_LIST_PER = 32
+#: ... and at least this many.
+CROSS_LIST_MIN = 4096
 
 
 def check_probe_radius(probe_radius) -> float:
@@ -303,7 +308,8 @@ def wetted_nbytes(
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
+    :data:`EXACT_QUEUE_PER` voxels) and the crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
+    :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
     witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
     Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
     rho = check_probe_radius(probe_radius)
@@ -314,7 +320,7 @@ def wetted_nbytes(
 
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
-    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1)
+    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1) + 8 * cross_list_capacity(lay["faces"], device) + 4
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
@@ -360,6 +366,16 @@ def exact_queue_capacity(shape, device) -> int:
     return min(n_vox, max(EXACT_QUEUE_MIN, n_vox // EXACT_QUEUE_PER))
 
 
+def cross_list_capacity(faces, device) -> int:
+    """Crossings the crossing list holds on ``device`` for voxel faces ``faces`` (per axis): one per
+    :data:`CROSS_LIST_PER` faces, at least :data:`CROSS_LIST_MIN`, on CUDA; none on the CPU (one thread runs a
+    launch there, and the list would only add a pass); ``device`` None: CUDA's rule."""
+    if device is not None and not device.is_cuda:
+        return 0
+    total = int(sum(int(f) for f in faces))
+    return min(total, max(CROSS_LIST_MIN, total // CROSS_LIST_PER))
+
+
 @dataclass
 class WettedDiagnostics:
     """What the last update found; built on demand from device arrays, outside the hot path.
@@ -399,6 +415,8 @@ class WettedDiagnostics:
         skin_witnessed: With the skin, voxels of ``rescued`` kept wet by re-checking the one candidate an earlier
             update found them wet by (the others were tested).
         skin_cross_kept: With the skin, crossings whose owner was kept without a search (none with walls).
+        crossings_listed: Crossings loaded through the crossing list (CUDA), one thread each; the rest were loaded
+            where they were found (all of them on the CPU, or past the list's capacity).
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -438,6 +456,7 @@ class WettedDiagnostics:
     skin_resets: int = 0
     skin_witnessed: int = 0
     skin_cross_kept: int = 0
+    crossings_listed: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -614,6 +633,8 @@ class WettedSurface:
         # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
         # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
         self._exact_queue(exact_queue_capacity(lay["n"], d))
+        # The crossing list (CUDA): the crossings found by the face-word threads, loaded by a thread each.
+        self._cross_list(cross_list_capacity(self._faces, d))
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
         self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
@@ -643,6 +664,13 @@ class WettedSurface:
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
+
+    def _cross_list(self, capacity: int) -> None:
+        """List up to ``capacity`` crossings for a loading thread each (0: none, every crossing loaded where it is
+        found; the tests set it on either device); the answer is the same."""
+        self._list_capacity = int(capacity)
+        self.cross_list = wp.zeros(self._list_capacity, dtype=wp.vec2i, device=self.device)
+        self.cross_listed = wp.zeros(1, dtype=wp.int32, device=self.device)
 
     def _auto_slices(self, n: int) -> int:
         if not self.device.is_cuda:
@@ -896,8 +924,24 @@ class WettedSurface:
             )
         if last < 4:
             return
-        per_word = 32 // self._bits
+        # With the list, a thread per face word only finds the crossings (the searches run a thread each below);
+        # without it, a thread per `_bits` bits searches what it finds.
+        bits = 32 if self._list_capacity else self._bits
+        per_word = 32 // bits
         first = wp.vec3i(0, self._face_words[0] * per_word, (self._face_words[0] + self._face_words[1]) * per_word)
+        loads = [
+            self.counts,
+            self.hits,
+            self.rays,
+            self.diag,
+            self.owners,
+            self.wall_counts,
+            self._cross_keys,
+            self._cross_owners,
+            self._skin_state,
+        ]
+        if self._list_capacity:
+            self.cross_listed.zero_()
         wp.launch(
             KC.wet_cross,
             dim=sum(self._face_words) * per_word,
@@ -907,7 +951,7 @@ class WettedSurface:
                 box,
                 walls,
                 first,
-                self._bits,
+                bits,
                 self.fluid,
                 self.heads,
                 self.next_in_bin,
@@ -915,19 +959,29 @@ class WettedSurface:
                 self.skin,
                 n,
             ],
-            outputs=[
-                self.counts,
-                self.hits,
-                self.rays,
-                self.diag,
-                self.owners,
-                self.wall_counts,
-                self._cross_keys,
-                self._cross_owners,
-                self._skin_state,
-            ],
+            outputs=[*loads, self.cross_list, self.cross_listed],
             device=d,
         )
+        if self._list_capacity:
+            wp.launch(
+                KC.wet_cross_listed,
+                dim=self._list_capacity,
+                inputs=[
+                    positions,
+                    radii,
+                    box,
+                    walls,
+                    self.heads,
+                    self.next_in_bin,
+                    self.rmax,
+                    self.skin,
+                    n,
+                    self.cross_list,
+                    self.cross_listed,
+                ],
+                outputs=loads,
+                device=d,
+            )
         if last < 5 or n == 0:
             return
         wp.launch(
@@ -1001,6 +1055,8 @@ class WettedSurface:
             nonconverged_total=int(self.nonconverged_total.numpy()[0]),
             wall_counts=self.wall_counts_numpy(),
         )
+        if self._list_capacity:
+            out.crossings_listed = min(int(self.cross_listed.numpy()[0]), self._list_capacity)
         if self.skin:
             st = self._skin_state.numpy()
             out.skin_kept = int(st[KB.SKIN_KEPT])

@@ -349,10 +349,14 @@ def wet_cross(
     cross_keys: wp.array[wp.int32],
     cross_owners: wp.array[wp.int32],
     skin: wp.array[wp.int32],
+    cross_list: wp.array[wp.vec2i],
+    cross_listed: wp.array[wp.int32],
 ):
     """Crossings on the faces of all three axes in one launch (threads from ``first[a]`` on are axis a's): one
-    thread per ``bits`` bits of a face word, so that a thread makes at most ``bits`` nearest-sphere searches (the
-    host picks 1 for small grids on CUDA, where latency rules, 32 on the CPU).
+    thread per ``bits`` bits of a face word. With a crossing list (``cross_list`` not empty; CUDA), each crossing
+    found goes into it as (face key, enters) while there is room, for ``wet_cross_listed`` to load with one thread
+    each, and only those past its capacity are loaded here; without one, each is loaded here (at most ``bits``
+    nearest-sphere searches per thread: 32 on the CPU).
 
     Axis 0: face words q = (nwx + 1) row + w, faces f = 32 w + b of row (j, k) (ray j + ny k). Axis 1: q = w + nwx
     (jf + (ny + 1) k), faces jf = 0..ny of the rays of voxels x = 32 w + b (ray k + nz x). Axis 2: q = w + nwx
@@ -454,6 +458,11 @@ def wet_cross(
         else:
             p[2] = wp.float64(face) * box.h[2]
             ray = x + box.n[0] * j
+        if cross_list.shape[0] > 0:
+            slot = wp.atomic_add(cross_listed, 0, 1)
+            if slot < cross_list.shape[0]:
+                cross_list[slot] = wp.vec2i(box.face_offset[axis] + ray * (box.n[axis] + 1) + face, enters)
+                continue
         load_crossing(
             p,
             axis,
@@ -479,6 +488,93 @@ def wet_cross(
             cross_owners,
             skin,
         )
+
+
+@wp.kernel
+def wet_cross_listed(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    shrink: wp.float64,
+    n_particles: wp.int32,
+    cross_list: wp.array[wp.vec2i],
+    cross_listed: wp.array[wp.int32],
+    # outputs
+    counts: wp.array[wp.int64],
+    hits: wp.array[wp.int32],
+    rays: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+    owners: wp.array[wp.int32],
+    wall_counts: wp.array[wp.int64],
+    cross_keys: wp.array[wp.int32],
+    cross_owners: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
+):
+    """One thread per listed crossing (``wet_cross``'s list): its face key gives the axis, the ray and the face,
+    from which the crossing point is rebuilt with ``wet_cross``'s own expressions (the same float64 point), then
+    ``load_crossing``. The search threads are then as many as the crossings (about 1% of the faces) instead of one
+    per face bit, most of which find nothing and hold a register-heavy block's place."""
+    s = wp.tid()
+    if s >= wp.min(cross_listed[0], cross_list.shape[0]):
+        return
+    item = cross_list[s]
+    key = item[0]
+    axis = int(0)
+    if key >= box.face_offset[2]:
+        axis = 2
+    elif key >= box.face_offset[1]:
+        axis = 1
+    rest = key - box.face_offset[axis]
+    ray = rest / (box.n[axis] + 1)
+    face = rest - ray * (box.n[axis] + 1)
+    x = int(0)
+    j = int(0)
+    k = int(0)
+    if axis == 0:
+        x = face
+        j = ray % box.n[1]
+        k = ray / box.n[1]
+    elif axis == 1:
+        k = ray % box.n[2]
+        x = ray / box.n[2]
+    else:
+        x = ray % box.n[0]
+        j = ray / box.n[0]
+    p = wp.vec3d(
+        (wp.float64(x) + wp.float64(0.5)) * box.h[0],
+        (wp.float64(j) + wp.float64(0.5)) * box.h[1],
+        (wp.float64(k) + wp.float64(0.5)) * box.h[2],
+    )
+    p[axis] = wp.float64(face) * box.h[axis]
+    load_crossing(
+        p,
+        axis,
+        item[1],
+        ray,
+        face,
+        positions,
+        radii,
+        heads,
+        next_in_bin,
+        rmax,
+        box,
+        walls,
+        shrink,
+        n_particles,
+        counts,
+        hits,
+        rays,
+        diag,
+        owners,
+        wall_counts,
+        cross_keys,
+        cross_owners,
+        skin,
+    )
 
 
 @wp.func
