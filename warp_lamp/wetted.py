@@ -100,6 +100,11 @@ SKIN_BYTES_PER_PARTICLE = 20
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
 EXACT_QUEUE_MIN = 4096
+#: Threads per block of the launches whose work sits in few threads (the queued exact tests and the listed crossings,
+#: packed at the front of their launch; the thin chords, a thread per sphere and axis): at 146-255 registers a
+#: thread, one block of 256 fills an SM's registers, so on the specimen 15,915 queued tests ran on 63 of the H200's
+#: 132 SMs and the thin chords on 55 (Nsight Compute, 2026-11-28); blocks of 64 spread them over every SM.
+SPARSE_BLOCK_DIM = 64
 #: The crossing list (CUDA) holds one crossing per this many voxel faces (the bench's scenes cross about one face in
 #: 60 to 110; past the list the crossings are loaded where they are found) ...
 CROSS_LIST_PER = 32
@@ -913,6 +918,7 @@ class WettedSurface:
                 ],
                 outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
                 device=d,
+                block_dim=SPARSE_BLOCK_DIM,
             )
         if self.skin:
             wp.launch(
@@ -981,6 +987,7 @@ class WettedSurface:
                 ],
                 outputs=loads,
                 device=d,
+                block_dim=SPARSE_BLOCK_DIM,
             )
         if last < 5 or n == 0:
             return
@@ -1002,6 +1009,7 @@ class WettedSurface:
             ],
             outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
             device=d,
+            block_dim=SPARSE_BLOCK_DIM,
         )
 
     def counts_numpy(self) -> np.ndarray:
