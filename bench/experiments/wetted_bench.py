@@ -54,7 +54,7 @@ def grid_for(scene, cell, rho):
     return wl.LampGrid(lo, hi, cell)
 
 
-def bench_scene(name, scene, cell, rho_d, device, repeats, queue=None):
+def bench_scene(name, scene, cell, rho_d, device, repeats, queue=None, cross_list=None, sparse_block=None):
     rho = rho_d * 2.0 * float(scene.radii.mean())
     grid = grid_for(scene, cell, rho)
     n = scene.n
@@ -73,6 +73,18 @@ def bench_scene(name, scene, cell, rho_d, device, repeats, queue=None):
 
         surf._exact_queue(exact_queue_capacity(surf.shape, None) if queue else 0)
         out["queue"] = queue
+    if cross_list is not None and hasattr(surf, "_cross_list"):
+        # The crossings listed for a thread each (1, the capacity CUDA gets) or loaded where found (0).
+        from warp_lamp.wetted import cross_list_capacity
+
+        surf._cross_list(cross_list_capacity(surf._faces, None) if cross_list else 0)
+        out["cross_list"] = cross_list
+    if sparse_block is not None:
+        import warp_lamp.wetted as wetted_module
+
+        if hasattr(wetted_module, "SPARSE_BLOCK_DIM"):
+            wetted_module.SPARSE_BLOCK_DIM = sparse_block  # read at each launch
+            out["sparse_block"] = sparse_block
     surf.update(pos, rad)
     d = surf.diagnostics()
     out["fluid_hash"] = hashlib.sha1(surf.fluid.numpy().tobytes() + surf.counts_numpy().tobytes()).hexdigest()
@@ -127,6 +139,8 @@ def main():
     ap.add_argument("--rho-diameters", type=float, nargs="*", default=[0.5], help="rho in mean diameters")
     ap.add_argument("--only", nargs="*", default=None, help="scenes to run: specimen, lattice, slot (default all)")
     ap.add_argument("--queue", type=int, nargs="*", default=[None], help="exact tests queued: 1, or not: 0 (A/B)")
+    ap.add_argument("--cross-list", type=int, default=None, help="crossings listed: 1, or not: 0 (A/B)")
+    ap.add_argument("--sparse-block", type=int, default=None, help="threads per block of the sparse launches (A/B)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     wp.config.log_level = wp.LOG_WARNING
@@ -139,7 +153,7 @@ def main():
         for rho_d in args.rho_diameters:
             for queue in args.queue:
                 repeats = args.repeats or (50 if device.is_cuda else 5)
-                row = bench_scene(name, scene, cell, rho_d, device, repeats, queue)
+                row = bench_scene(name, scene, cell, rho_d, device, repeats, queue, args.cross_list, args.sparse_block)
                 rows.append(row)
                 keys = [k for k in row if k.endswith("_s")]
                 times = ", ".join(f"{k[:-2]} {row[k] * 1e3:.3f} ms" for k in keys)
