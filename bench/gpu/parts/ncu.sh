@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Nsight Compute on the area cell pass and the wetted stages' kernels (specimen, 4 cells/d), where ncu is present.
+# Nsight Compute on the wetted stages' kernels (specimen, 4 cells/d; area_sides with the area mode), where ncu is present.
 NCU="$(command -v ncu || ls /usr/local/cuda*/bin/ncu /opt/nvidia/nsight-compute/*/ncu 2>/dev/null | head -1)"
 if [ -z "$NCU" ]; then echo "ncu: not found on this machine"; exit 0; fi
 echo "ncu: $NCU"
-for spec in "area:area_sides" "wetted:wet_classify" "wetted:wet_cross" "wetted:wet_thin"; do
+for spec in "wetted:wet_classify_queued" "wetted:wet_cross_listed" "wetted:wet_thin" "wetted:wet_expose"; do
   mode="${spec%%:*}"; kern="${spec#*:}"
   timeout 150 "$NCU" --target-processes all -k "regex:$kern" --launch-skip 2 --launch-count 1 \
     --section SpeedOfLight --section Occupancy --section LaunchStats --section WarpStateStats \
