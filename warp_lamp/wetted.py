@@ -856,10 +856,12 @@ class WettedSurface:
                 device=d,
             )
         if n > 0:
+            self.exposed.zero_()
+            slices = self._slices or self._auto_slices(n)
             wp.launch(
                 K.wet_expose,
-                dim=n,
-                inputs=[positions, radii, active, box, self.reach],
+                dim=n * slices,
+                inputs=[positions, radii, active, box, self.reach, slices],
                 outputs=[self.exposed],
                 device=d,
             )

@@ -1289,14 +1289,19 @@ def wet_expose(
     active: wp.array[wp.int32],
     box: WetBox,
     reach: wp.array[wp.uint32],
+    slices: wp.int32,
     # outputs
     exposed: wp.array[wp.int32],
 ):
-    """One thread per sphere: 1 when a reached voxel (or the outside) lies within (r + rho + diagonal)(1 + slack)
-    of its centre. A reachable candidate on the sphere's inflated surface has a reached cube corner within one
-    diagonal, so a sphere that is not exposed carries none (a necessary condition: pruning, not a decision)."""
-    pid = wp.tid()
-    exposed[pid] = 0
+    """``slices`` threads per sphere (``exposed`` zeroed before the launch), thread s scanning the z planes
+    ks[0] + s, ks[0] + s + slices, ...: sets 1 when a reached voxel (or the outside) lies within
+    (r + rho + diagonal)(1 + slack) of the centre. A reachable candidate on the sphere's inflated surface has a
+    reached cube corner within one diagonal, so a sphere that is not exposed carries none (a necessary condition:
+    pruning, not a decision). An unexposed sphere reads every row of its ball (about a hundred words); the slices
+    share them out (one thread each ran 147 us on the specimen, on 19 SMs)."""
+    t = wp.tid()
+    pid = t / slices
+    sl = t - pid * slices
     if active.shape[0] > 0:
         if active[pid] == 0:
             return
@@ -1313,7 +1318,7 @@ def wet_expose(
     rd2 = rd * rd
     ks = span_from(c[2], rd, box.h[2], box.n[2])
     js = span_from(c[1], rd, box.h[1], box.n[1])
-    for k in range(ks[0], ks[1] + 1):
+    for k in range(ks[0] + sl, ks[1] + 1, slices):
         dz = centre_offset(k, box.h[2], c[2])
         for j in range(js[0], js[1] + 1):
             dy = centre_offset(j, box.h[1], c[1])
