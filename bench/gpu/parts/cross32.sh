@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Issue 32: the crossings' and sparse launches' changes, A/B in one run: .base2/ (the code before them: git archive
-# f68958f warp_lamp) against this tree as shipped (crossings listed, blocks of 64), without the list, and with blocks
-# of 256; wetted_bench's stages on the specimen, slot block and 1M lattice (rho = r-bar); the small scenes twice.
+# Issue 32: the last wetted change, A/B in one run: .base3/ (the code before it: git archive <commit> warp_lamp | tar -x
+# -C .base3) against this tree; wetted_bench's stages on the specimen, slot block and 1M lattice (rho = r-bar), the
+# small scenes twice. wetted_bench's --cross-list 0 and --sparse-block 256 time the crossing list's and the block
+# size's variants of this tree (measured 2026-11-28, bench/NOTES.md).
 T=/tmp/cross32
 mkdir -p $T
 bench() { # tag, pythonpath, extra args...
@@ -11,14 +12,10 @@ bench() { # tag, pythonpath, extra args...
   echo "$tag rc=$?"
 }
 NOW="/root/site:$PWD"
-bench before-1 "$PWD/.base2:/root/site"
+bench before-1 "$PWD/.base3:/root/site"
 bench shipped-1 "$NOW"
-bench nolist-1 "$NOW" --cross-list 0
-bench block256-1 "$NOW" --sparse-block 256
-bench before-2 "$PWD/.base2:/root/site" --only specimen slot
+bench before-2 "$PWD/.base3:/root/site" --only specimen slot
 bench shipped-2 "$NOW" --only specimen slot
-bench nolist-2 "$NOW" --cross-list 0 --only specimen slot
-bench block256-2 "$NOW" --sparse-block 256 --only specimen slot
 cp $T/*.json "$OUT/" 2>/dev/null
 python3 - $T <<'PY'
 import glob, json, sys
