@@ -325,6 +325,86 @@ def load_crossing(
     wp.atomic_add(hits, pid, 1)
 
 
+@wp.func
+def load_face(
+    key: wp.int32,
+    enters: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    shrink: wp.float64,
+    n_particles: wp.int32,
+    counts: wp.array[wp.int64],
+    hits: wp.array[wp.int32],
+    rays: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+    owners: wp.array[wp.int32],
+    wall_counts: wp.array[wp.int64],
+    cross_keys: wp.array[wp.int32],
+    cross_owners: wp.array[wp.int32],
+    skin: wp.array[wp.int32],
+):
+    """``load_crossing`` of the crossing on face ``key`` (``face_offset[a] + ray (n_a + 1) + face``): the axis, the
+    ray and the face from the key, and the crossing point, the face's centre: voxel centres across the axis, the
+    face itself along it. The face-word threads and the listed crossings' threads both load through it."""
+    axis = int(0)
+    if key >= box.face_offset[2]:
+        axis = 2
+    elif key >= box.face_offset[1]:
+        axis = 1
+    rest = key - box.face_offset[axis]
+    ray = rest / (box.n[axis] + 1)
+    face = rest - ray * (box.n[axis] + 1)
+    x = int(0)
+    j = int(0)
+    k = int(0)
+    if axis == 0:
+        x = face
+        j = ray % box.n[1]
+        k = ray / box.n[1]
+    elif axis == 1:
+        k = ray % box.n[2]
+        x = ray / box.n[2]
+    else:
+        x = ray % box.n[0]
+        j = ray / box.n[0]
+    p = wp.vec3d(
+        (wp.float64(x) + wp.float64(0.5)) * box.h[0],
+        (wp.float64(j) + wp.float64(0.5)) * box.h[1],
+        (wp.float64(k) + wp.float64(0.5)) * box.h[2],
+    )
+    p[axis] = wp.float64(face) * box.h[axis]
+    load_crossing(
+        p,
+        axis,
+        enters,
+        ray,
+        face,
+        positions,
+        radii,
+        heads,
+        next_in_bin,
+        rmax,
+        box,
+        walls,
+        shrink,
+        n_particles,
+        counts,
+        hits,
+        rays,
+        diag,
+        owners,
+        wall_counts,
+        cross_keys,
+        cross_owners,
+        skin,
+    )
+
+
 @wp.kernel
 def wet_cross(
     positions: wp.array[wp.vec3],
@@ -442,33 +522,23 @@ def wet_cross(
         if ((after >> wp.uint32(b)) & wp.uint32(1)) != wp.uint32(0):
             enters = 0
         x = 32 * w + b
-        p = wp.vec3d(
-            (wp.float64(x) + wp.float64(0.5)) * box.h[0],
-            (wp.float64(j) + wp.float64(0.5)) * box.h[1],
-            (wp.float64(k) + wp.float64(0.5)) * box.h[2],
-        )
         ray = int(0)
         if axis == 0:
             face = x
-            p[0] = wp.float64(x) * box.h[0]
             ray = j + box.n[1] * k
         elif axis == 1:
-            p[1] = wp.float64(face) * box.h[1]
             ray = k + box.n[2] * x
         else:
-            p[2] = wp.float64(face) * box.h[2]
             ray = x + box.n[0] * j
+        key = box.face_offset[axis] + ray * (box.n[axis] + 1) + face
         if cross_list.shape[0] > 0:
             slot = wp.atomic_add(cross_listed, 0, 1)
             if slot < cross_list.shape[0]:
-                cross_list[slot] = wp.vec2i(box.face_offset[axis] + ray * (box.n[axis] + 1) + face, enters)
+                cross_list[slot] = wp.vec2i(key, enters)
                 continue
-        load_crossing(
-            p,
-            axis,
+        load_face(
+            key,
             enters,
-            ray,
-            face,
             positions,
             radii,
             heads,
@@ -514,48 +584,16 @@ def wet_cross_listed(
     cross_owners: wp.array[wp.int32],
     skin: wp.array[wp.int32],
 ):
-    """One thread per listed crossing (``wet_cross``'s list): its face key gives the axis, the ray and the face,
-    from which the crossing point is rebuilt with ``wet_cross``'s own expressions (the same float64 point), then
-    ``load_crossing``. The search threads are then as many as the crossings (about 1% of the faces) instead of one
-    per face bit, most of which find nothing and hold a register-heavy block's place."""
+    """One thread per listed crossing (``wet_cross``'s list): ``load_face`` of its key, as the face-word threads
+    load what they do not list. The search threads are then as many as the crossings (about 1% of the faces)
+    instead of one per face bit, most of which find nothing and hold a register-heavy block's place."""
     s = wp.tid()
     if s >= wp.min(cross_listed[0], cross_list.shape[0]):
         return
     item = cross_list[s]
-    key = item[0]
-    axis = int(0)
-    if key >= box.face_offset[2]:
-        axis = 2
-    elif key >= box.face_offset[1]:
-        axis = 1
-    rest = key - box.face_offset[axis]
-    ray = rest / (box.n[axis] + 1)
-    face = rest - ray * (box.n[axis] + 1)
-    x = int(0)
-    j = int(0)
-    k = int(0)
-    if axis == 0:
-        x = face
-        j = ray % box.n[1]
-        k = ray / box.n[1]
-    elif axis == 1:
-        k = ray % box.n[2]
-        x = ray / box.n[2]
-    else:
-        x = ray % box.n[0]
-        j = ray / box.n[0]
-    p = wp.vec3d(
-        (wp.float64(x) + wp.float64(0.5)) * box.h[0],
-        (wp.float64(j) + wp.float64(0.5)) * box.h[1],
-        (wp.float64(k) + wp.float64(0.5)) * box.h[2],
-    )
-    p[axis] = wp.float64(face) * box.h[axis]
-    load_crossing(
-        p,
-        axis,
+    load_face(
+        item[0],
         item[1],
-        ray,
-        face,
         positions,
         radii,
         heads,
