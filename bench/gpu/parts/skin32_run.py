@@ -78,20 +78,6 @@ def answer(surf):
     return skin, key, int(diag[KB.DIAG_UNCERTAIN])
 
 
-def timed(fn, device):
-    if device.is_cuda:
-        e0 = wp.Event(device, enable_timing=True)
-        e1 = wp.Event(device, enable_timing=True)
-        wp.record_event(e0)
-        fn()
-        wp.record_event(e1)
-        wp.synchronize_event(e1)
-        return wp.get_event_elapsed_time(e0, e1) / 1e3
-    t0 = time.perf_counter()
-    fn()
-    return time.perf_counter() - t0
-
-
 def bench_scene(name, scene, device, args):
     rbar = float(scene.radii.mean())
     rho = rbar
@@ -160,8 +146,8 @@ def bench_scene(name, scene, device, args):
             j = int(rng.integers(n))
             c[j] += rng.normal(scale=rbar / np.sqrt(3.0), size=3)
         work.assign(c.astype(np.float32))
-        ts = timed(run_skin, device)
-        tf = timed(run_fresh, device)
+        ts = time_median_events(run_skin, device, repeats=1, warmup=0)  # each step once: it changes the state
+        tf = time_median_events(run_fresh, device, repeats=1, warmup=0)
         ds, a, uncertain = answer(skin)
         _, b, _ = answer(fresh)
         same = a == b
