@@ -361,24 +361,27 @@ def witness_capacity(shape) -> int:
     return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
 
 
-def exact_queue_capacity(shape, device) -> int:
-    """Voxels the exact test's queue holds on ``device`` for a box of ``shape`` voxels: one in
-    :data:`EXACT_QUEUE_PER`, at least :data:`EXACT_QUEUE_MIN`, on CUDA; none on the CPU (a launch runs on one
-    thread there, where packing the tests gains nothing); ``device`` None: CUDA's rule."""
+def _packed_capacity(total: int, per: int, least: int, device) -> int:
+    """Slots of a CUDA work list over ``total`` items: one per ``per``, at least ``least``, at most ``total``; none
+    on the CPU, where one thread runs a launch and packing the work gains nothing (``device`` None: CUDA's rule)."""
     if device is not None and not device.is_cuda:
         return 0
+    return min(int(total), max(least, int(total) // per))
+
+
+def exact_queue_capacity(shape, device) -> int:
+    """Voxels the exact test's queue holds on ``device`` for a box of ``shape`` voxels: one in
+    :data:`EXACT_QUEUE_PER`, at least :data:`EXACT_QUEUE_MIN`, on CUDA; none on the CPU; ``device`` None: CUDA's
+    rule."""
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
-    return min(n_vox, max(EXACT_QUEUE_MIN, n_vox // EXACT_QUEUE_PER))
+    return _packed_capacity(n_vox, EXACT_QUEUE_PER, EXACT_QUEUE_MIN, device)
 
 
 def cross_list_capacity(faces, device) -> int:
     """Crossings the crossing list holds on ``device`` for voxel faces ``faces`` (per axis): one per
-    :data:`CROSS_LIST_PER` faces, at least :data:`CROSS_LIST_MIN`, on CUDA; none on the CPU (one thread runs a
-    launch there, and the list would only add a pass); ``device`` None: CUDA's rule."""
-    if device is not None and not device.is_cuda:
-        return 0
-    total = int(sum(int(f) for f in faces))
-    return min(total, max(CROSS_LIST_MIN, total // CROSS_LIST_PER))
+    :data:`CROSS_LIST_PER` faces, at least :data:`CROSS_LIST_MIN`, on CUDA; none on the CPU; ``device`` None:
+    CUDA's rule."""
+    return _packed_capacity(sum(int(f) for f in faces), CROSS_LIST_PER, CROSS_LIST_MIN, device)
 
 
 @dataclass
