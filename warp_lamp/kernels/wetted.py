@@ -185,8 +185,8 @@ def blocked_point(
             for bx in range(span.lo[0], span.hi[0] + 1):
                 q = bin_head(bx, by, bz, box, heads)
                 while q >= 0:
-                    if not defining(q, i, j, k, positions, radii):
-                        if inside_inflated(z, q, positions, radii, box):
+                    if inside_inflated(z, q, positions, radii, box):
+                        if not defining(q, i, j, k, positions, radii):
                             return q
                     q = next_in_bin[q]
     return -1
@@ -218,14 +218,14 @@ def segment_blocked(
             for bx in range(span.lo[0], span.hi[0] + 1):
                 q = bin_head(bx, by, bz, box, heads)
                 while q >= 0:
-                    if not defining(q, i, j, k, positions, radii):
-                        big = wp.float64(radii[q]) + box.rho
-                        w = y - centre_of(q, positions)
-                        t = wp.float64(0.0)
-                        if dd > wp.float64(0.0):
-                            t = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
-                        p = w + d * t
-                        if dot3(p, p) < big * big:
+                    big = wp.float64(radii[q]) + box.rho
+                    w = y - centre_of(q, positions)
+                    t = wp.float64(0.0)
+                    if dd > wp.float64(0.0):
+                        t = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
+                    p = w + d * t
+                    if dot3(p, p) < big * big:
+                        if not defining(q, i, j, k, positions, radii):
                             return True
                     q = next_in_bin[q]
     return False
@@ -255,8 +255,8 @@ def candidate_check(
     blocks the segment to a reached corner: g is affine, the corner keeps rho from every wall and z from every wall
     but its own, on whose offset plane it lies."""
     if hint >= 0:
-        if not defining(hint, i, j, k, positions, radii):
-            if inside_inflated(z, hint, positions, radii, box):
+        if inside_inflated(z, hint, positions, radii, box):
+            if not defining(hint, i, j, k, positions, radii):
                 return hint
     if not walls_allow(z, i, j, k, walls, box.rho):
         return -1
@@ -313,15 +313,15 @@ def candidate_check_list(
     if ng < 0:
         return candidate_check(x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
     if hint >= 0:
-        if not defining(hint, i, j, k, positions, radii):
-            if inside_inflated(z, hint, positions, radii, box):
+        if inside_inflated(z, hint, positions, radii, box):
+            if not defining(hint, i, j, k, positions, radii):
                 return hint
     if not walls_allow(z, i, j, k, walls, box.rho):
         return -1
     for t in range(ng):
         q = gathered[t]
-        if not defining(q, i, j, k, positions, radii):
-            if inside_inflated(z, q, positions, radii, box):
+        if inside_inflated(z, q, positions, radii, box):
+            if not defining(q, i, j, k, positions, radii):
                 return q
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
     lo = wp.vec3i(0)
@@ -352,14 +352,14 @@ def candidate_check_list(
                     cut = int(0)
                     for t in range(ng):
                         q = gathered[t]
-                        if not defining(q, i, j, k, positions, radii):
-                            big = wp.float64(radii[q]) + box.rho
-                            w = y - centre_of(q, positions)
-                            s = wp.float64(0.0)
-                            if dd > wp.float64(0.0):
-                                s = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
-                            p = w + d * s
-                            if dot3(p, p) < big * big:
+                        big = wp.float64(radii[q]) + box.rho
+                        w = y - centre_of(q, positions)
+                        s = wp.float64(0.0)
+                        if dd > wp.float64(0.0):
+                            s = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
+                        p = w + d * s
+                        if dot3(p, p) < big * big:
+                            if not defining(q, i, j, k, positions, radii):
                                 cut = 1
                                 break
                     if cut == 0:
