@@ -92,7 +92,8 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
 
 #: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list): the tests
 #: queued or not, the queue too small for the band (the rest tested by the classify threads), each path of the exact
-#: test; the crossings listed for a thread each, none listed, or the list too small (the rest loaded where found).
+#: test; the crossings and thin chords listed for a thread each, none listed, or the lists too small (the rest
+#: loaded or walked where found).
 DECOMPOSITIONS = (
     (3, 8, 0, 0, 1 << 20, 128, 1 << 20),
     (8, 1, 2, 0, 300, 0, 0),
@@ -123,11 +124,17 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
         surface._exact_queue(capacity)
         surface._cross_list(listed)
+        surface._thin_list(listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         d = assert_matches(surface, ref)
         # The list took what it could hold: all the sphere crossings (over 1000 here), or 37 of them.
         found = sum(len(ref.crossings[a]["face"]) for a in range(3))
         assert d.crossings_listed == (found if listed == 1 << 20 else min(listed, found))
+        # Every thin chord with fluid on both sides is listed (at least one per loaded interval), or 37 of them.
+        if listed == 1 << 20:
+            thin_all = d.thin_listed
+            assert thin_all >= d.thin > 5
+        assert d.thin_listed == min(listed, thin_all)
 
 
 def test_float64_inputs_differ_only_where_flagged(device, rng):
@@ -670,6 +677,7 @@ def test_memory_is_known_before_allocation(device):
         surface = WettedSurface(grid, probe_radius=rho, keep_owners=keep, device=device, skin=skin)
         arrays = [v for v in vars(surface).values() if isinstance(v, wp.array)]
         per_particle = {id(surface.counts), id(surface.hits), id(surface.next_in_bin), id(surface._no_active)}
+        per_particle |= {id(surface.thin_list), id(surface.thin_from)}  # sized with the particles
         allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)
         assert wetted_nbytes(grid, rho, keep_owners=keep, device=device, skin=skin) == surface.nbytes
         assert allocated == surface.nbytes
@@ -759,6 +767,7 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
         surface._exact_queue(capacity)
         surface._cross_list(listed)
+        surface._thin_list(listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         assert_matches(surface, ref)
 

@@ -71,9 +71,11 @@ __all__ = [
     "attribution_bound",
     "band_radius",
     "check_probe_radius",
+    "cross_list_capacity",
     "dilation_table",
     "exact_queue_capacity",
     "skin_distance",
+    "thin_list_capacity",
     "unpack_bits",
     "voxel_box",
     "voxel_diagonal",
@@ -81,7 +83,9 @@ __all__ = [
     "witness_capacity",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag; on
+#: CUDA also the thin chords' list (:func:`thin_list_capacity`: 16 bytes per :data:`THIN_LIST_PER` sphere-axes) and
+#: 3 int32 for where each sphere-axis's chords left the list.
 BYTES_PER_PARTICLE = 36
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
@@ -110,6 +114,11 @@ SPARSE_BLOCK_DIM = 64
 CROSS_LIST_PER = 32
 #: ... and at least this many.
 CROSS_LIST_MIN = 4096
+#: The thin chords' list (CUDA) holds one chord per this many (sphere, axis) pairs (the 1M lattice lists about one
+#: in 60; past the list a chord is walked where it was found) ...
+THIN_LIST_PER = 8
+#: ... and at least this many.
+THIN_LIST_MIN = 4096
 
 
 def check_probe_radius(probe_radius) -> float:
@@ -325,7 +334,9 @@ def wetted_nbytes(
 
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
-    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1) + 8 * cross_list_capacity(lay["faces"], device) + 4
+    # The exact-test queue and its count, the crossing list, and three int32 counters (crossings and thin chords
+    # listed, thin chords left over).
+    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1) + 8 * cross_list_capacity(lay["faces"], device) + 12
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
@@ -384,6 +395,14 @@ def cross_list_capacity(faces, device) -> int:
     return _packed_capacity(sum(int(f) for f in faces), CROSS_LIST_PER, CROSS_LIST_MIN, device)
 
 
+def thin_list_capacity(n: int, device) -> int:
+    """Thin chords the list holds on ``device`` for ``n`` particles: one per :data:`THIN_LIST_PER` (sphere, axis)
+    pairs, at least :data:`THIN_LIST_MIN`, on CUDA; none on the CPU; ``device`` None: CUDA's rule."""
+    if device is not None and not device.is_cuda:
+        return 0
+    return max(THIN_LIST_MIN, 3 * int(n) // THIN_LIST_PER)
+
+
 @dataclass
 class WettedDiagnostics:
     """What the last update found; built on demand from device arrays, outside the hot path.
@@ -425,6 +444,7 @@ class WettedDiagnostics:
         skin_cross_kept: With the skin, crossings whose owner was kept without a search (none with walls).
         crossings_listed: Crossings loaded through the crossing list (CUDA), one thread each; the rest were loaded
             where they were found (all of them on the CPU, or past the list's capacity).
+        thin_listed: Thin chords with fluid on both sides walked through the thin list (CUDA), one thread each.
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -465,6 +485,7 @@ class WettedDiagnostics:
     skin_witnessed: int = 0
     skin_cross_kept: int = 0
     crossings_listed: int = 0
+    thin_listed: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -643,6 +664,13 @@ class WettedSurface:
         self._exact_queue(exact_queue_capacity(lay["n"], d))
         # The crossing list (CUDA): the crossings found by the face-word threads, loaded by a thread each.
         self._cross_list(cross_list_capacity(self._faces, d))
+        # The thin chords' list (CUDA), sized with the particles (``reserve``); None: thin_list_capacity's rule.
+        self._thin_capacity = None
+        self.thin_list = wp.zeros(0, dtype=wp.vec4i, device=d)
+        self.thin_listed = wp.zeros(1, dtype=wp.int32, device=d)
+        # Per sphere-axis, 1 + the first of its chords the list could not hold (0: none), and whether any.
+        self.thin_from = wp.zeros(0, dtype=wp.int32, device=d)
+        self.thin_over = wp.zeros(1, dtype=wp.int32, device=d)
         self.rmax = wp.zeros(1, dtype=wp.float32, device=d)
         self.cond = wp.zeros(1, dtype=wp.int32, device=d)
         self.frontier = wp.zeros(1, dtype=wp.int32, device=d)
@@ -680,6 +708,17 @@ class WettedSurface:
         self.cross_list = wp.zeros(self._list_capacity, dtype=wp.vec2i, device=self.device)
         self.cross_listed = wp.zeros(1, dtype=wp.int32, device=self.device)
 
+    def _thin_list(self, capacity: int | None) -> None:
+        """List up to ``capacity`` thin chords for a walking thread each (0: none; None: the device's rule for the
+        reserved particles; the tests set it on either device); the answer is the same."""
+        self._thin_capacity = capacity
+        self._thin_buffers(self.hits.shape[0])
+
+    def _thin_buffers(self, n: int) -> None:
+        cap = thin_list_capacity(n, self.device) if self._thin_capacity is None else int(self._thin_capacity)
+        self.thin_list = wp.zeros(cap, dtype=wp.vec4i, device=self.device)
+        self.thin_from = wp.zeros(3 * n if cap > 0 else 0, dtype=wp.int32, device=self.device)
+
     def _auto_slices(self, n: int) -> int:
         if not self.device.is_cuda:
             return 1
@@ -697,6 +736,7 @@ class WettedSurface:
             self.hits = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.next_in_bin = wp.zeros(n, dtype=wp.int32, device=self.device)
             self.exposed = wp.zeros(n, dtype=wp.int32, device=self.device)
+            self._thin_buffers(n)
             if self.skin:
                 self._ref_pos = wp.zeros(n, dtype=wp.vec3, device=self.device)
                 self._ref_rad = wp.zeros(n, dtype=wp.float32, device=self.device)
@@ -996,26 +1036,51 @@ class WettedSurface:
             )
         if last < 5 or n == 0:
             return
+        loads = [self.counts, self.hits, self.rays, self.diag, self.thin_faces]
+        # wet_thin's inputs; wet_thin_listed's are these less active and fluid.
+        walk = [positions, radii, active, box, walls, self.fluid, self.reach, self.heads, self.next_in_bin]
+        walk += [self.rmax, self.exposed]
+        if self.thin_list.shape[0] == 0:
+            wp.launch(
+                K.wet_thin,
+                dim=3 * n,
+                inputs=[*walk, self.thin_from],
+                outputs=loads,
+                device=d,
+                block_dim=SPARSE_BLOCK_DIM,
+            )
+            return
+        # Listed (CUDA): a light scan lists the chords with fluid on both sides, a thread walks each, and the
+        # walking kernel runs over the sphere-axes only when some chord did not fit in the list.
+        self.thin_listed.zero_()
+        self.thin_over.zero_()
         wp.launch(
-            K.wet_thin,
+            K.wet_thin_scan,
             dim=3 * n,
-            inputs=[
-                positions,
-                radii,
-                active,
-                box,
-                walls,
-                self.fluid,
-                self.reach,
-                self.heads,
-                self.next_in_bin,
-                self.rmax,
-                self.exposed,
-            ],
-            outputs=[self.counts, self.hits, self.rays, self.diag, self.thin_faces],
+            inputs=[positions, radii, active, box, walls, self.fluid],
+            outputs=[self.thin_list, self.thin_listed, self.thin_from, self.thin_over],
+            device=d,
+        )
+        wp.launch(
+            K.wet_thin_listed,
+            dim=self.thin_list.shape[0],
+            inputs=[*walk[:2], box, walls, *walk[6:], self.thin_list, self.thin_listed],
+            outputs=loads,
             device=d,
             block_dim=SPARSE_BLOCK_DIM,
         )
+
+        def overflow():
+            wp.launch(
+                K.wet_thin,
+                dim=3 * n,
+                inputs=[*walk, self.thin_from],
+                outputs=loads,
+                device=d,
+                block_dim=SPARSE_BLOCK_DIM,
+            )
+
+        wp.capture_if(self.thin_over, on_true=overflow)
 
     def counts_numpy(self) -> np.ndarray:
         """Signed crossing counts of the last update, shape (N, 3), int64 (copies to the host)."""
@@ -1070,6 +1135,8 @@ class WettedSurface:
         )
         if self._list_capacity:
             out.crossings_listed = min(int(self.cross_listed.numpy()[0]), self._list_capacity)
+        if self.thin_list.shape[0] > 0:
+            out.thin_listed = min(int(self.thin_listed.numpy()[0]), self.thin_list.shape[0])
         if self.skin:
             st = self._skin_state.numpy()
             out.skin_kept = int(st[KB.SKIN_KEPT])

@@ -1999,6 +1999,207 @@ def chord_before(lo_q: wp.float64, q: wp.int32, lo_s: wp.float64, s: wp.int32) -
     return lo_q < lo_s or (lo_q == lo_s and q < s)
 
 
+@wp.func
+def thin_interval(
+    s: wp.int32,
+    a: wp.int32,
+    iu: wp.int32,
+    iv: wp.int32,
+    me: Chord,
+    r_max: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    reach: wp.array[wp.uint32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    # outputs
+    counts: wp.array[wp.int64],
+    hits: wp.array[wp.int32],
+    rays: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+    thin_faces: wp.array[wp.int32],
+):
+    """Sphere s's thin chord ``me`` on row (iu, iv) of axis a, whose samples on either side are fluid: the chords
+    between the same samples merge (``wet_thin``); where this one starts a merged interval, its entry and exit are
+    loaded."""
+    u = (a + 1) % 3
+    m0 = me.m0
+    # Every thin chord between these samples has its centre within r_max + h_a of the face point.
+    g0 = row_point(a, wp.float64(m0 + 1) * box.h[a], iu, iv, box)
+    span = bin_span(g0, (r_max + box.h[a]) * (wp.float64(1.0) + SLACK), box)
+    # Where do the chords before this one end?
+    has_before = int(0)
+    top = wp.float64(0.0)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    if q != s:
+                        ch = thin_chord(q, a, iu, iv, positions, radii, box)
+                        if ch.ok != 0 and ch.m0 == m0 and chord_before(ch.lo, q, me.lo, s):
+                            if has_before == 0 or ch.hi > top:
+                                top = ch.hi
+                            has_before = 1
+                    q = next_in_bin[q]
+    if has_before != 0:
+        if top >= me.lo:
+            return
+        wp.atomic_add(diag, DIAG_GAPS, 1)
+        gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
+        if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+            return
+    # This chord starts a merged interval: walk the chords after it in order while they join it.
+    cur = me.hi
+    end = s
+    last_lo = me.lo
+    last = s
+    more = int(1)
+    while more != 0:
+        nxt = int(-1)
+        nxt_lo = wp.float64(0.0)
+        nxt_hi = wp.float64(0.0)
+        for bz in range(span.lo[2], span.hi[2] + 1):
+            for by in range(span.lo[1], span.hi[1] + 1):
+                for bx in range(span.lo[0], span.hi[0] + 1):
+                    q = bin_head(bx, by, bz, box, heads)
+                    while q >= 0:
+                        ch = thin_chord(q, a, iu, iv, positions, radii, box)
+                        if ch.ok != 0 and ch.m0 == m0 and chord_before(last_lo, last, ch.lo, q):
+                            if nxt < 0 or chord_before(ch.lo, q, nxt_lo, nxt):
+                                nxt = q
+                                nxt_lo = ch.lo
+                                nxt_hi = ch.hi
+                        q = next_in_bin[q]
+        more = 0
+        if nxt >= 0:
+            join = int(1)
+            if nxt_lo > cur:
+                wp.atomic_add(diag, DIAG_GAPS, 1)
+                gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
+                if probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+                    join = 0
+            if join != 0:
+                if nxt_hi > cur or (nxt_hi == cur and nxt < end):
+                    cur = nxt_hi
+                    end = nxt
+                last_lo = nxt_lo
+                last = nxt
+                more = 1
+    ray = iu + box.n[u] * iv
+    wp.atomic_add(diag, DIAG_THIN, 1)
+    wp.atomic_add(rays, box.offset[a] + ray, 1)
+    if thin_faces.shape[0] > 0:
+        wp.atomic_add(thin_faces, box.face_offset[a] + ray * (box.n[a] + 1) + m0 + 1, 1)
+    if ((box.lamp_mask >> (2 * a)) & 1) != 0:
+        wp.atomic_add(counts, 3 * s + a, wp.int64(1))
+        wp.atomic_add(hits, s, 1)
+    if ((box.lamp_mask >> (2 * a + 1)) & 1) != 0:
+        wp.atomic_add(counts, 3 * end + a, wp.int64(-1))
+        wp.atomic_add(hits, end, 1)
+
+
+@wp.func
+def thin_row(
+    s: wp.int32,
+    a: wp.int32,
+    iu: wp.int32,
+    iv: wp.int32,
+    c: wp.vec3d,
+    r2: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    fluid: wp.array[wp.uint32],
+) -> Chord:
+    """Sphere s's (centre c, squared radius r2) thin chord on row (iu, iv) of axis a when both samples beside it
+    are fluid (``ok`` 1), else a chord with ``ok`` 0: the rows that ``thin_interval`` walks."""
+    u = (a + 1) % 3
+    v = (a + 2) % 3
+    du = centre_offset(iu, box.h[u], c[u])
+    dv = centre_offset(iv, box.h[v], c[v])
+    # thin_chord's first test, cheaply (two terms add in either order, exactly): most rows end here.
+    t2 = du * du + dv * dv
+    if not (t2 < r2) or r2 - t2 >= box.h[a] * box.h[a]:
+        out = Chord()
+        out.ok = 0
+        return out
+    me = thin_chord(s, a, iu, iv, positions, radii, box)
+    if me.ok != 0:
+        if not (
+            fluid_sample(a, me.m0, iu, iv, fluid, box, walls) and fluid_sample(a, me.m0 + 1, iu, iv, fluid, box, walls)
+        ):
+            me.ok = 0
+    return me
+
+
+@wp.func
+def thin_rows(
+    s: wp.int32, a: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
+) -> wp.vec4i:
+    """The rows of axis a that sphere s's footprint spans, (u first, u last, v first, v last); empty (first >
+    last) for a sphere that is not loaded (inactive ones are skipped by the caller) or not finite."""
+    p = positions[s]
+    r32 = radii[s]
+    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r32) and r32 > 0.0):
+        return wp.vec4i(0, -1, 0, -1)
+    c = centre_of(s, positions)
+    r = wp.float64(r32)
+    u = (a + 1) % 3
+    v = (a + 2) % 3
+    us = span_from(c[u], r, box.h[u], box.n[u])
+    vs = span_from(c[v], r, box.h[v], box.n[v])
+    return wp.vec4i(us[0], us[1], vs[0], vs[1])
+
+
+@wp.kernel
+def wet_thin_scan(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    active: wp.array[wp.int32],
+    box: WetBox,
+    walls: LampWalls,
+    fluid: wp.array[wp.uint32],
+    # outputs
+    thin_list: wp.array[wp.vec4i],
+    thin_listed: wp.array[wp.int32],
+    thin_from: wp.array[wp.int32],
+    thin_over: wp.array[wp.int32],
+):
+    """One thread per (sphere, axis), CUDA's first thin pass: list (sphere, axis, row) for every thin chord with
+    fluid on both sides (``thin_row``) while the list has room, for ``wet_thin_listed``. It walks nothing, so it
+    keeps few registers and many threads resident (the walking kernel's 255 registers made the scan of the 1M
+    lattice's 3M sphere-axes 89 waves). Past the list's capacity it writes, per thread, 1 + the ordinal of its
+    first chord left unlisted (``thin_from``, 0: none) and sets ``thin_over[0]``: ``wet_thin`` walks those."""
+    t = wp.tid()
+    s = t / 3
+    a = t - 3 * s
+    first = int(-1)
+    if active.shape[0] == 0 or active[s] != 0:
+        rows = thin_rows(s, a, positions, radii, box)
+        c = centre_of(s, positions)
+        r = wp.float64(radii[s])
+        r2 = r * r
+        ordinal = int(0)
+        for iv in range(rows[2], rows[3] + 1):
+            for iu in range(rows[0], rows[1] + 1):
+                me = thin_row(s, a, iu, iv, c, r2, positions, radii, box, walls, fluid)
+                if me.ok != 0:
+                    slot = wp.atomic_add(thin_listed, 0, 1)
+                    if slot < thin_list.shape[0]:
+                        thin_list[slot] = wp.vec4i(s, a, iu, iv)
+                    elif first < 0:
+                        first = ordinal
+                    ordinal += 1
+    thin_from[t] = first + 1
+    if first >= 0:
+        thin_over[0] = 1
+
+
 @wp.kernel
 def wet_thin(
     positions: wp.array[wp.vec3],
@@ -2012,6 +2213,7 @@ def wet_thin(
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
+    thin_from: wp.array[wp.int32],
     # outputs
     counts: wp.array[wp.int64],
     hits: wp.array[wp.int32],
@@ -2020,117 +2222,105 @@ def wet_thin(
     thin_faces: wp.array[wp.int32],
 ):
     """One thread per (sphere, axis): the sphere's thin chords on the rows of that axis whose samples on both sides
-    are fluid. The thin chords between the same two samples, ordered by start, merge where they overlap or touch
-    or where the gap between them is dry (``probe_reaches`` at its midpoint); the thread of the first chord of each
-    merged interval loads its entry (the low lamp's +1, to that sphere) and its exit (the high lamp's -1, to the
-    sphere whose chord reaches furthest, ties to the lower index). Integer counts: the order is immaterial."""
+    are fluid (``thin_row``), each walked by ``thin_interval``: the thin chords between the same two samples,
+    ordered by start, merge where they overlap or touch or where the gap between them is dry (``probe_reaches`` at
+    its midpoint); the thread of the first chord of each merged interval loads its entry (the low lamp's +1, to
+    that sphere) and its exit (the high lamp's -1, to the sphere whose chord reaches furthest, ties to the lower
+    index). Integer counts: the order is immaterial. With ``thin_from`` (CUDA, after ``wet_thin_scan`` and
+    ``wet_thin_listed``) a thread walks only its chords from ordinal ``thin_from[t] - 1`` on, the ones the list
+    could not hold, and none where it is 0."""
     t = wp.tid()
     s = t / 3
     a = t - 3 * s
+    skip = int(0)
+    if thin_from.shape[0] > 0:
+        skip = thin_from[t] - 1
+        if skip < 0:
+            return
     if active.shape[0] > 0:
         if active[s] == 0:
             return
-    p = positions[s]
-    r32 = radii[s]
-    if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r32) and r32 > 0.0):
-        return
+    rows = thin_rows(s, a, positions, radii, box)
     c = centre_of(s, positions)
-    r = wp.float64(r32)
-    u = (a + 1) % 3
-    v = (a + 2) % 3
-    r_max = wp.float64(rmax[0])
-    us = span_from(c[u], r, box.h[u], box.n[u])
-    vs = span_from(c[v], r, box.h[v], box.n[v])
+    r = wp.float64(radii[s])
     r2 = r * r
-    ha2 = box.h[a] * box.h[a]
-    for iv in range(vs[0], vs[1] + 1):
-        dv = centre_offset(iv, box.h[v], c[v])
-        for iu in range(us[0], us[1] + 1):
-            du = centre_offset(iu, box.h[u], c[u])
-            # thin_chord's first test, cheaply (two terms add in either order, exactly): most rows end here.
-            t2 = du * du + dv * dv
-            if not (t2 < r2) or r2 - t2 >= ha2:
-                continue
-            me = thin_chord(s, a, iu, iv, positions, radii, box)
-            if me.ok == 0:
-                continue
-            m0 = me.m0
-            if not (
-                fluid_sample(a, m0, iu, iv, fluid, box, walls) and fluid_sample(a, m0 + 1, iu, iv, fluid, box, walls)
-            ):
-                continue
-            # Every thin chord between these samples has its centre within r_max + h_a of the face point.
-            g0 = row_point(a, wp.float64(m0 + 1) * box.h[a], iu, iv, box)
-            span = bin_span(g0, (r_max + box.h[a]) * (wp.float64(1.0) + SLACK), box)
-            # Where do the chords before this one end?
-            has_before = int(0)
-            top = wp.float64(0.0)
-            for bz in range(span.lo[2], span.hi[2] + 1):
-                for by in range(span.lo[1], span.hi[1] + 1):
-                    for bx in range(span.lo[0], span.hi[0] + 1):
-                        q = bin_head(bx, by, bz, box, heads)
-                        while q >= 0:
-                            if q != s:
-                                ch = thin_chord(q, a, iu, iv, positions, radii, box)
-                                if ch.ok != 0 and ch.m0 == m0 and chord_before(ch.lo, q, me.lo, s):
-                                    if has_before == 0 or ch.hi > top:
-                                        top = ch.hi
-                                    has_before = 1
-                            q = next_in_bin[q]
-            if has_before != 0:
-                if top >= me.lo:
-                    continue
-                wp.atomic_add(diag, DIAG_GAPS, 1)
-                gap = row_point(a, (top + me.lo) * wp.float64(0.5), iu, iv, box)
-                if not probe_reaches(gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
-                    continue
-            # This chord starts a merged interval: walk the chords after it in order while they join it.
-            cur = me.hi
-            end = s
-            last_lo = me.lo
-            last = s
-            more = int(1)
-            while more != 0:
-                nxt = int(-1)
-                nxt_lo = wp.float64(0.0)
-                nxt_hi = wp.float64(0.0)
-                for bz in range(span.lo[2], span.hi[2] + 1):
-                    for by in range(span.lo[1], span.hi[1] + 1):
-                        for bx in range(span.lo[0], span.hi[0] + 1):
-                            q = bin_head(bx, by, bz, box, heads)
-                            while q >= 0:
-                                ch = thin_chord(q, a, iu, iv, positions, radii, box)
-                                if ch.ok != 0 and ch.m0 == m0 and chord_before(last_lo, last, ch.lo, q):
-                                    if nxt < 0 or chord_before(ch.lo, q, nxt_lo, nxt):
-                                        nxt = q
-                                        nxt_lo = ch.lo
-                                        nxt_hi = ch.hi
-                                q = next_in_bin[q]
-                more = 0
-                if nxt >= 0:
-                    join = int(1)
-                    if nxt_lo > cur:
-                        wp.atomic_add(diag, DIAG_GAPS, 1)
-                        gap = row_point(a, (cur + nxt_lo) * wp.float64(0.5), iu, iv, box)
-                        if probe_reaches(
-                            gap, 0, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-                        ):
-                            join = 0
-                    if join != 0:
-                        if nxt_hi > cur or (nxt_hi == cur and nxt < end):
-                            cur = nxt_hi
-                            end = nxt
-                        last_lo = nxt_lo
-                        last = nxt
-                        more = 1
-            ray = iu + box.n[u] * iv
-            wp.atomic_add(diag, DIAG_THIN, 1)
-            wp.atomic_add(rays, box.offset[a] + ray, 1)
-            if thin_faces.shape[0] > 0:
-                wp.atomic_add(thin_faces, box.face_offset[a] + ray * (box.n[a] + 1) + m0 + 1, 1)
-            if ((box.lamp_mask >> (2 * a)) & 1) != 0:
-                wp.atomic_add(counts, 3 * s + a, wp.int64(1))
-                wp.atomic_add(hits, s, 1)
-            if ((box.lamp_mask >> (2 * a + 1)) & 1) != 0:
-                wp.atomic_add(counts, 3 * end + a, wp.int64(-1))
-                wp.atomic_add(hits, end, 1)
+    r_max = wp.float64(rmax[0])
+    ordinal = int(0)
+    for iv in range(rows[2], rows[3] + 1):
+        for iu in range(rows[0], rows[1] + 1):
+            me = thin_row(s, a, iu, iv, c, r2, positions, radii, box, walls, fluid)
+            if me.ok != 0:
+                ordinal += 1
+                if ordinal > skip:
+                    thin_interval(
+                        s,
+                        a,
+                        iu,
+                        iv,
+                        me,
+                        r_max,
+                        positions,
+                        radii,
+                        box,
+                        walls,
+                        reach,
+                        heads,
+                        next_in_bin,
+                        exposed,
+                        counts,
+                        hits,
+                        rays,
+                        diag,
+                        thin_faces,
+                    )
+
+
+@wp.kernel
+def wet_thin_listed(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    reach: wp.array[wp.uint32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    thin_list: wp.array[wp.vec4i],
+    thin_listed: wp.array[wp.int32],
+    # outputs
+    counts: wp.array[wp.int64],
+    hits: wp.array[wp.int32],
+    rays: wp.array[wp.int32],
+    diag: wp.array[wp.int32],
+    thin_faces: wp.array[wp.int32],
+):
+    """One thread per listed thin chord (``wet_thin``'s list: sphere, axis, row): the chord again (the same
+    function on the same inputs), then ``thin_interval``. Few rows hold a thin chord with fluid on both sides (the
+    bin walks and gap tests are theirs); listed, they no longer hold a warp of a thread per sphere and axis each."""
+    t = wp.tid()
+    if t >= wp.min(thin_listed[0], thin_list.shape[0]):
+        return
+    item = thin_list[t]
+    me = thin_chord(item[0], item[1], item[2], item[3], positions, radii, box)
+    thin_interval(
+        item[0],
+        item[1],
+        item[2],
+        item[3],
+        me,
+        wp.float64(rmax[0]),
+        positions,
+        radii,
+        box,
+        walls,
+        reach,
+        heads,
+        next_in_bin,
+        exposed,
+        counts,
+        hits,
+        rays,
+        diag,
+        thin_faces,
+    )
