@@ -193,6 +193,36 @@ def blocked_point(
 
 
 @wp.func
+def segment_cut(
+    y: wp.vec3d,
+    d: wp.vec3d,
+    dd: wp.float64,
+    mid: wp.vec3d,
+    half: wp.float64,
+    q: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+) -> wp.bool:
+    """The segment from y along d (``dd = |d|^2``; midpoint ``mid``, half-length ``half``) passes strictly inside
+    sphere q's inflated ball: its nearest point to the centre, at the clamped parameter, is closer than r + rho.
+    Every point of the segment lies within ``half`` of ``mid``, so a centre farther than r + rho + half (with
+    slack for rounding) is out of reach without the nearest point's division: most gathered spheres are."""
+    big = wp.float64(radii[q]) + box.rho
+    c = centre_of(q, positions)
+    e = c - mid
+    reach = (big + half) * (wp.float64(1.0) + SLACK)
+    if dot3(e, e) > reach * reach:
+        return False
+    w = y - c
+    s = wp.float64(0.0)
+    if dd > wp.float64(0.0):
+        s = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
+    p = w + d * s
+    return dot3(p, p) < big * big
+
+
+@wp.func
 def segment_blocked(
     x: wp.vec3d,
     y: wp.vec3d,
@@ -212,19 +242,15 @@ def segment_blocked(
     r + rho. Searched around x: the segment is within rho + diagonal of x."""
     d = z - y
     dd = dot3(d, d)
+    mid = y + d * wp.float64(0.5)
+    half = wp.sqrt(dd) * wp.float64(0.5)
     span = bin_span(x, reach, box)
     for bz in range(span.lo[2], span.hi[2] + 1):
         for by in range(span.lo[1], span.hi[1] + 1):
             for bx in range(span.lo[0], span.hi[0] + 1):
                 q = bin_head(bx, by, bz, box, heads)
                 while q >= 0:
-                    big = wp.float64(radii[q]) + box.rho
-                    w = y - centre_of(q, positions)
-                    t = wp.float64(0.0)
-                    if dd > wp.float64(0.0):
-                        t = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
-                    p = w + d * t
-                    if dot3(p, p) < big * big:
+                    if segment_cut(y, d, dd, mid, half, q, positions, radii, box):
                         if not defining(q, i, j, k, positions, radii):
                             return True
                     q = next_in_bin[q]
@@ -349,16 +375,12 @@ def candidate_check_list(
                 else:
                     d = z - y
                     dd = dot3(d, d)
+                    mid = y + d * wp.float64(0.5)
+                    half = wp.sqrt(dd) * wp.float64(0.5)
                     cut = int(0)
                     for t in range(ng):
                         q = gathered[t]
-                        big = wp.float64(radii[q]) + box.rho
-                        w = y - centre_of(q, positions)
-                        s = wp.float64(0.0)
-                        if dd > wp.float64(0.0):
-                            s = wp.clamp(-dot3(w, d) / dd, wp.float64(0.0), wp.float64(1.0))
-                        p = w + d * s
-                        if dot3(p, p) < big * big:
+                        if segment_cut(y, d, dd, mid, half, q, positions, radii, box):
                             if not defining(q, i, j, k, positions, radii):
                                 cut = 1
                                 break
