@@ -1,0 +1,81 @@
+"""Per-kernel GPU times of one wetted update (Warp's CUDA activity timing, eager updates, median over repeats), for
+the bench's scenes at rho = r-bar; variants: the thin chords' list at CUDA's size or off (the walking kernel alone).
+
+    python bench/experiments/kernel_times.py --device cuda:0 --only lattice --thin-list 1 0 --out kt.json
+"""
+
+import argparse
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+sys.path.insert(0, str(Path(__file__).parent))
+from wetted_bench import grid_for, scenes
+
+from warp_lamp.wetted import WettedSurface
+
+
+def kernel_times(name, scene, cell, device, repeats, thin_list):
+    rho = float(scene.radii.mean())
+    grid = grid_for(scene, cell, rho)
+    pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
+    surf = WettedSurface(grid, probe_radius=rho, device=device)
+    if thin_list == 0:
+        surf._thin_list(0)
+    surf.update(pos, rad)
+    surf.update(pos, rad)
+    per = defaultdict(list)
+    for _ in range(repeats):
+        wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET)
+        surf.update(pos, rad)
+        results = wp.timing_end()
+        seen = defaultdict(float)
+        for r in results:
+            seen[r.name.split("_cuda_kernel")[0]] += r.elapsed
+        for k, v in seen.items():
+            per[k].append(v)
+    d = surf.diagnostics()
+    rows = {k: float(np.median(v)) for k, v in per.items()}
+    return {
+        "scene": scene.name,
+        "thin_list": thin_list,
+        "thin": d.thin,
+        "thin_listed": getattr(d, "thin_listed", None),
+        "uncertain": d.uncertain,
+        "kernels_ms": rows,
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--device", default="cuda:0")
+    ap.add_argument("--only", nargs="*", default=None)
+    ap.add_argument("--thin-list", nargs="*", type=int, default=[1])
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--quick", action="store_true", help="small stand-in scenes (a CPU check of the script)")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    wp.init()
+    device = wp.get_device(args.device)
+    out = {"device": str(device), "name": device.name, "rows": []}
+    for name, scene, cell in scenes(args.quick):
+        if args.only and name not in args.only:
+            continue
+        for tl in args.thin_list:
+            row = kernel_times(name, scene, cell, device, args.repeats, tl)
+            out["rows"].append(row)
+            print(f"== {scene.name} thin list {tl}: thin {row['thin']}, listed {row['thin_listed']}")
+            for k, v in sorted(row["kernels_ms"].items(), key=lambda kv: -kv[1])[:12]:
+                print(f"   {k[:40]:40s} {v:9.4f} ms")
+            sys.stdout.flush()
+    if args.out:
+        Path(args.out).write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()
