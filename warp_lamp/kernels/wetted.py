@@ -163,6 +163,23 @@ def inside_inflated(
 
 
 @wp.func
+def corner_low(za: wp.float64, h: wp.float64, n: wp.int32) -> wp.vec2i:
+    """Along one axis, the lower voxel-centre index of the cube that holds a candidate's coordinate za, clamped to
+    the box's surroundings (-2 ... n + 1), and 1 where it was clamped. One call per axis with fixed components:
+    a vector indexed by a loop variable (the kernels are built without unrolling) lives in local memory."""
+    u = wp.floor(za / h - wp.float64(0.5))
+    f = wp.clamp(u, wp.float64(-2.0), wp.float64(n + 1))
+    return wp.vec2i(wp.int32(f), wp.where(f != u, 1, 0))
+
+
+@wp.func
+def vertex_row(vp: wp.mat33d, t: wp.int32) -> wp.vec3d:
+    """Point t (0 or 1) of ``vertex_points`` or ``ball_planes_points``, read from fixed entries (see
+    ``corner_low``)."""
+    return wp.where(t == 0, wp.vec3d(vp[0, 0], vp[0, 1], vp[0, 2]), wp.vec3d(vp[1, 0], vp[1, 1], vp[1, 2]))
+
+
+@wp.func
 def blocked_point(
     x: wp.vec3d,
     z: wp.vec3d,
@@ -291,10 +308,10 @@ def candidate_check(
     if blocker >= 0:
         return blocker
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lo = wp.vec3i(0)
-    for a in range(3):
-        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
-        lo[a] = wp.int32(f)
+    lx = corner_low(z[0], box.h[0], box.n[0])
+    ly = corner_low(z[1], box.h[1], box.n[1])
+    lz = corner_low(z[2], box.h[2], box.n[2])
+    lo = wp.vec3i(lx[0], ly[0], lz[0])
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
@@ -350,14 +367,11 @@ def candidate_check_list(
             if not defining(q, i, j, k, positions, radii):
                 return q
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lo = wp.vec3i(0)
-    clamped = int(0)
-    for a in range(3):
-        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
-        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
-        if f != u:
-            clamped = 1
-        lo[a] = wp.int32(f)
+    lx = corner_low(z[0], box.h[0], box.n[0])
+    ly = corner_low(z[1], box.h[1], box.n[1])
+    lz = corner_low(z[2], box.h[2], box.n[2])
+    lo = wp.vec3i(lx[0], ly[0], lz[0])
+    clamped = lx[1] | ly[1] | lz[1]
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
@@ -557,7 +571,7 @@ def vertex_walk(
                         vp = vertex_points(ci, big_i, cj, big_j, ck, wp.float64(radii[k]) + box.rho)
                         if vp[2, 0] != wp.float64(0.0):
                             for s in range(2):
-                                z = wp.vec3d(vp[s, 0], vp[s, 1], vp[s, 2])
+                                z = vertex_row(vp, s)
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check(
@@ -915,7 +929,7 @@ def wall_sphere_candidates(
                             )
                             if vp[2, 0] != wp.float64(0.0):
                                 for t in range(2):
-                                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                                    z = vertex_row(vp, t)
                                     if try_candidate(
                                         x,
                                         z,
@@ -971,7 +985,7 @@ def wall_pair_candidates(
             vp = ball_planes_points(ci, bi2, e1, b1, wall_normal(pl), rho - plane_value(pl, ci))
             if vp[2, 0] != wp.float64(0.0):
                 for t in range(2):
-                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                    z = vertex_row(vp, t)
                     if try_candidate(
                         x, z, i, j, WALL_TAG - w, rmax, positions, radii, heads, next_in_bin, reach, box, walls
                     ):
@@ -1255,7 +1269,7 @@ def probe_search(
                         vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
                         if vp[2, 0] != wp.float64(0.0):
                             for t in range(2):
-                                z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                                z = vertex_row(vp, t)
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check_list(
@@ -1636,7 +1650,7 @@ def witness_holds(
             if vp[2, 0] == wp.float64(0.0):
                 return False
             t = wit[3]
-            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+            z = vertex_row(vp, t)
     w = x - z
     if not (dot3(w, w) <= rho2):
         return False
@@ -1982,6 +1996,30 @@ def thin_chord(
 
 
 @wp.func
+def axis_of(x: wp.vec3d, a: wp.int32) -> wp.float64:
+    """Component a of x. A vector indexed by a runtime value lives in local memory, which the thin scan's row
+    loop paid for on every row (11 ms of the 1M lattice's update, Warp's activity timing on an H200); selected
+    from fixed components, it stays in registers."""
+    return wp.where(a == 0, x[0], wp.where(a == 1, x[1], x[2]))
+
+
+@wp.func
+def axis_of_i(x: wp.vec3i, a: wp.int32) -> wp.int32:
+    """``axis_of`` for integer vectors."""
+    return wp.where(a == 0, x[0], wp.where(a == 1, x[1], x[2]))
+
+
+@wp.func
+def row_ijk(a: wp.int32, m: wp.int32, iu: wp.int32, iv: wp.int32) -> wp.vec3i:
+    """Voxel index (i, j, k) of sample m on the row (iu, iv) along axis a (u = a + 1, v = a + 2, modulo 3)."""
+    return wp.vec3i(
+        wp.where(a == 0, m, wp.where(a == 1, iv, iu)),
+        wp.where(a == 0, iu, wp.where(a == 1, m, iv)),
+        wp.where(a == 0, iv, wp.where(a == 1, iu, m)),
+    )
+
+
+@wp.func
 def fluid_sample(
     a: wp.int32,
     m: wp.int32,
@@ -1993,11 +2031,8 @@ def fluid_sample(
 ) -> wp.bool:
     """Sample m of the row (iu, iv) along axis a is fluid; the virtual samples -1 and n_a are the virtual fluid
     (``walls_fluid``: all of them without walls)."""
-    ijk = wp.vec3i(0)
-    ijk[a] = m
-    ijk[(a + 1) % 3] = iu
-    ijk[(a + 2) % 3] = iv
-    if m < 0 or m >= box.n[a]:
+    ijk = row_ijk(a, m, iu, iv)
+    if m < 0 or m >= axis_of_i(box.n, a):
         return walls_fluid(virtual_point(ijk[0], ijk[1], ijk[2], box), walls, box.rho)
     word = fluid[word_at(box, ijk[0] / 32, ijk[1], ijk[2])]
     return ((word >> wp.uint32(ijk[0] % 32)) & wp.uint32(1)) != wp.uint32(0)
@@ -2124,58 +2159,92 @@ def thin_interval(
         wp.atomic_add(hits, end, 1)
 
 
-@wp.func
-def thin_row(
-    s: wp.int32,
-    a: wp.int32,
-    iu: wp.int32,
-    iv: wp.int32,
-    c: wp.vec3d,
-    r2: wp.float64,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    box: WetBox,
-    walls: LampWalls,
-    fluid: wp.array[wp.uint32],
-) -> Chord:
-    """Sphere s's (centre c, squared radius r2) thin chord on row (iu, iv) of axis a when both samples beside it
-    are fluid (``ok`` 1), else a chord with ``ok`` 0: the rows that ``thin_interval`` walks."""
-    u = (a + 1) % 3
-    v = (a + 2) % 3
-    du = centre_offset(iu, box.h[u], c[u])
-    dv = centre_offset(iv, box.h[v], c[v])
-    # thin_chord's first test, cheaply (two terms add in either order, exactly): most rows end here.
-    t2 = du * du + dv * dv
-    if not (t2 < r2) or r2 - t2 >= box.h[a] * box.h[a]:
-        out = Chord()
-        out.ok = 0
-        return out
-    me = thin_chord(s, a, iu, iv, positions, radii, box)
-    if me.ok != 0:
-        if not (
-            fluid_sample(a, me.m0, iu, iv, fluid, box, walls) and fluid_sample(a, me.m0 + 1, iu, iv, fluid, box, walls)
-        ):
-            me.ok = 0
-    return me
+@wp.struct
+class ThinAxis:
+    """A sphere's rows along one axis a, as scalars (u = a + 1, v = a + 2, modulo 3): the centre's and the voxel
+    edges' components, the rows its footprint spans (first > last: none) and m0, the sample before a thin chord
+    (``thin_chord``)."""
+
+    cu: wp.float64
+    cv: wp.float64
+    ca: wp.float64
+    hu: wp.float64
+    hv: wp.float64
+    ha: wp.float64
+    r2: wp.float64
+    u0: wp.int32
+    u1: wp.int32
+    v0: wp.int32
+    v1: wp.int32
+    m0: wp.int32
 
 
 @wp.func
-def thin_rows(
+def thin_axis(
     s: wp.int32, a: wp.int32, positions: wp.array[wp.vec3], radii: wp.array[wp.float32], box: WetBox
-) -> wp.vec4i:
-    """The rows of axis a that sphere s's footprint spans, (u first, u last, v first, v last); empty (first >
-    last) for a sphere that is not loaded (inactive ones are skipped by the caller) or not finite."""
+) -> ThinAxis:
+    """Sphere s's ``ThinAxis`` along a; no rows for a sphere that is not finite or whose chords along a cannot
+    lie between two samples of the box's rows (``thin_chord``'s range of m0)."""
+    out = ThinAxis()
+    out.u0 = 0
+    out.u1 = -1
+    out.v0 = 0
+    out.v1 = -1
     p = positions[s]
     r32 = radii[s]
     if not (wp.isfinite(p[0]) and wp.isfinite(p[1]) and wp.isfinite(p[2]) and wp.isfinite(r32) and r32 > 0.0):
-        return wp.vec4i(0, -1, 0, -1)
+        return out
     c = centre_of(s, positions)
-    r = wp.float64(r32)
     u = (a + 1) % 3
     v = (a + 2) % 3
-    us = span_from(c[u], r, box.h[u], box.n[u])
-    vs = span_from(c[v], r, box.h[v], box.n[v])
-    return wp.vec4i(us[0], us[1], vs[0], vs[1])
+    out.cu = axis_of(c, u)
+    out.cv = axis_of(c, v)
+    out.ca = axis_of(c, a)
+    out.hu = axis_of(box.h, u)
+    out.hv = axis_of(box.h, v)
+    out.ha = axis_of(box.h, a)
+    r = wp.float64(r32)
+    out.r2 = r * r
+    f = out.ca / out.ha - wp.float64(0.5)
+    if not (f >= wp.float64(-1.0) and f < wp.float64(axis_of_i(box.n, a))):
+        return out
+    out.m0 = wp.int32(wp.floor(f))
+    us = span_from(out.cu, r, out.hu, axis_of_i(box.n, u))
+    vs = span_from(out.cv, r, out.hv, axis_of_i(box.n, v))
+    out.u0 = us[0]
+    out.u1 = us[1]
+    out.v0 = vs[0]
+    out.v1 = vs[1]
+    return out
+
+
+@wp.func
+def thin_listable(
+    ax: ThinAxis,
+    a: wp.int32,
+    iu: wp.int32,
+    iv: wp.int32,
+    du: wp.float64,
+    dv: wp.float64,
+    fluid: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """The sphere of ``ax`` has a thin chord on row (iu, iv) (centre offsets du, dv along u and v) and both samples
+    beside it are fluid: ``thin_chord``'s tests on the same values, in the same order of summation (x, y, z), so
+    the same rows as ``thin_chord(...).ok`` and ``fluid_sample`` on both sides."""
+    # thin_chord's first test (two terms add in either order, exactly, and its third term is 0): most rows end here.
+    t2 = du * du + dv * dv
+    if not (t2 < ax.r2) or ax.r2 - t2 >= ax.ha * ax.ha:
+        return False
+    for m in range(ax.m0 - 1, ax.m0 + 3):
+        da = centre_offset(m, ax.ha, ax.ca)
+        x = wp.where(a == 0, da, wp.where(a == 1, dv, du))
+        y = wp.where(a == 0, du, wp.where(a == 1, da, dv))
+        z = wp.where(a == 0, dv, wp.where(a == 1, du, da))
+        if (x * x + y * y) + z * z < ax.r2:
+            return False
+    return fluid_sample(a, ax.m0, iu, iv, fluid, box, walls) and fluid_sample(a, ax.m0 + 1, iu, iv, fluid, box, walls)
 
 
 @wp.kernel
@@ -2202,15 +2271,13 @@ def wet_thin_scan(
     a = t - 3 * s
     first = int(-1)
     if active.shape[0] == 0 or active[s] != 0:
-        rows = thin_rows(s, a, positions, radii, box)
-        c = centre_of(s, positions)
-        r = wp.float64(radii[s])
-        r2 = r * r
+        ax = thin_axis(s, a, positions, radii, box)
         ordinal = int(0)
-        for iv in range(rows[2], rows[3] + 1):
-            for iu in range(rows[0], rows[1] + 1):
-                me = thin_row(s, a, iu, iv, c, r2, positions, radii, box, walls, fluid)
-                if me.ok != 0:
+        for iv in range(ax.v0, ax.v1 + 1):
+            dv = centre_offset(iv, ax.hv, ax.cv)
+            for iu in range(ax.u0, ax.u1 + 1):
+                du = centre_offset(iu, ax.hu, ax.cu)
+                if thin_listable(ax, a, iu, iv, du, dv, fluid, box, walls):
                     slot = wp.atomic_add(thin_listed, 0, 1)
                     if slot < thin_list.shape[0]:
                         thin_list[slot] = wp.vec4i(s, a, iu, iv)
@@ -2262,18 +2329,17 @@ def wet_thin(
     if active.shape[0] > 0:
         if active[s] == 0:
             return
-    rows = thin_rows(s, a, positions, radii, box)
-    c = centre_of(s, positions)
-    r = wp.float64(radii[s])
-    r2 = r * r
+    ax = thin_axis(s, a, positions, radii, box)
     r_max = wp.float64(rmax[0])
     ordinal = int(0)
-    for iv in range(rows[2], rows[3] + 1):
-        for iu in range(rows[0], rows[1] + 1):
-            me = thin_row(s, a, iu, iv, c, r2, positions, radii, box, walls, fluid)
-            if me.ok != 0:
+    for iv in range(ax.v0, ax.v1 + 1):
+        dv = centre_offset(iv, ax.hv, ax.cv)
+        for iu in range(ax.u0, ax.u1 + 1):
+            du = centre_offset(iu, ax.hu, ax.cu)
+            if thin_listable(ax, a, iu, iv, du, dv, fluid, box, walls):
                 ordinal += 1
                 if ordinal > skip:
+                    me = thin_chord(s, a, iu, iv, positions, radii, box)
                     thin_interval(
                         s,
                         a,
