@@ -163,23 +163,6 @@ def inside_inflated(
 
 
 @wp.func
-def corner_low(za: wp.float64, h: wp.float64, n: wp.int32) -> wp.vec2i:
-    """Along one axis, the lower voxel-centre index of the cube that holds a candidate's coordinate za, clamped to
-    the box's surroundings (-2 ... n + 1), and 1 where it was clamped. One call per axis with fixed components:
-    a vector indexed by a loop variable (the kernels are built without unrolling) lives in local memory."""
-    u = wp.floor(za / h - wp.float64(0.5))
-    f = wp.clamp(u, wp.float64(-2.0), wp.float64(n + 1))
-    return wp.vec2i(wp.int32(f), wp.where(f != u, 1, 0))
-
-
-@wp.func
-def vertex_row(vp: wp.mat33d, t: wp.int32) -> wp.vec3d:
-    """Point t (0 or 1) of ``vertex_points`` or ``ball_planes_points``, read from fixed entries (see
-    ``corner_low``)."""
-    return wp.where(t == 0, wp.vec3d(vp[0, 0], vp[0, 1], vp[0, 2]), wp.vec3d(vp[1, 0], vp[1, 1], vp[1, 2]))
-
-
-@wp.func
 def blocked_point(
     x: wp.vec3d,
     z: wp.vec3d,
@@ -308,10 +291,10 @@ def candidate_check(
     if blocker >= 0:
         return blocker
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lx = corner_low(z[0], box.h[0], box.n[0])
-    ly = corner_low(z[1], box.h[1], box.n[1])
-    lz = corner_low(z[2], box.h[2], box.n[2])
-    lo = wp.vec3i(lx[0], ly[0], lz[0])
+    lo = wp.vec3i(0)
+    for a in range(3):
+        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        lo[a] = wp.int32(f)
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
@@ -367,11 +350,14 @@ def candidate_check_list(
             if not defining(q, i, j, k, positions, radii):
                 return q
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lx = corner_low(z[0], box.h[0], box.n[0])
-    ly = corner_low(z[1], box.h[1], box.n[1])
-    lz = corner_low(z[2], box.h[2], box.n[2])
-    lo = wp.vec3i(lx[0], ly[0], lz[0])
-    clamped = lx[1] | ly[1] | lz[1]
+    lo = wp.vec3i(0)
+    clamped = int(0)
+    for a in range(3):
+        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
+        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        if f != u:
+            clamped = 1
+        lo[a] = wp.int32(f)
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
@@ -571,7 +557,7 @@ def vertex_walk(
                         vp = vertex_points(ci, big_i, cj, big_j, ck, wp.float64(radii[k]) + box.rho)
                         if vp[2, 0] != wp.float64(0.0):
                             for s in range(2):
-                                z = vertex_row(vp, s)
+                                z = wp.vec3d(vp[s, 0], vp[s, 1], vp[s, 2])
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check(
@@ -929,7 +915,7 @@ def wall_sphere_candidates(
                             )
                             if vp[2, 0] != wp.float64(0.0):
                                 for t in range(2):
-                                    z = vertex_row(vp, t)
+                                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                                     if try_candidate(
                                         x,
                                         z,
@@ -985,7 +971,7 @@ def wall_pair_candidates(
             vp = ball_planes_points(ci, bi2, e1, b1, wall_normal(pl), rho - plane_value(pl, ci))
             if vp[2, 0] != wp.float64(0.0):
                 for t in range(2):
-                    z = vertex_row(vp, t)
+                    z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                     if try_candidate(
                         x, z, i, j, WALL_TAG - w, rmax, positions, radii, heads, next_in_bin, reach, box, walls
                     ):
@@ -1269,7 +1255,7 @@ def probe_search(
                         vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
                         if vp[2, 0] != wp.float64(0.0):
                             for t in range(2):
-                                z = vertex_row(vp, t)
+                                z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                                 w = x - z
                                 if dot3(w, w) <= rho2:
                                     res = candidate_check_list(
@@ -1650,7 +1636,7 @@ def witness_holds(
             if vp[2, 0] == wp.float64(0.0):
                 return False
             t = wit[3]
-            z = vertex_row(vp, t)
+            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
     w = x - z
     if not (dot3(w, w) <= rho2):
         return False

@@ -372,25 +372,13 @@ def table_claim(
 
 
 @wp.func
-def bin_range(pa: wp.float64, reach: wp.float64, edge: wp.float64, n: wp.int32) -> wp.vec2i:
-    """Along one axis, the first and last bins that pa +- reach touches, clamped. Called per axis with fixed
-    components: a vector indexed by a loop variable (the kernels are built without unrolling) lives in local
-    memory."""
-    top = wp.float64(n - 1)
-    lo = wp.int32(wp.clamp(wp.floor((pa - reach) / edge), wp.float64(0.0), top))
-    hi = wp.int32(wp.clamp(wp.floor((pa + reach) / edge), wp.float64(0.0), top))
-    return wp.vec2i(lo, hi)
-
-
-@wp.func
 def bin_span(p: wp.vec3d, reach: wp.float64, box: WetBox) -> BinSpan:
     """The bins that the cube p +- reach touches (clamped: far spheres sit in the edge bins)."""
-    x = bin_range(p[0], reach, box.bin_edge, box.bin_n[0])
-    y = bin_range(p[1], reach, box.bin_edge, box.bin_n[1])
-    z = bin_range(p[2], reach, box.bin_edge, box.bin_n[2])
     out = BinSpan()
-    out.lo = wp.vec3i(x[0], y[0], z[0])
-    out.hi = wp.vec3i(x[1], y[1], z[1])
+    for a in range(3):
+        top = wp.float64(box.bin_n[a] - 1)
+        out.lo[a] = wp.int32(wp.clamp(wp.floor((p[a] - reach) / box.bin_edge), wp.float64(0.0), top))
+        out.hi[a] = wp.int32(wp.clamp(wp.floor((p[a] + reach) / box.bin_edge), wp.float64(0.0), top))
     return out
 
 
