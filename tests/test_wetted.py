@@ -20,6 +20,8 @@ from warp_lamp.scenes import (
 )
 from warp_lamp.validate import check_particles
 from warp_lamp.wetted import (
+    BYTES_PER_PARTICLE,
+    CUDA_BYTES_PER_PARTICLE,
     WettedSurface,
     attribution_bound,
     dilation_table,
@@ -681,6 +683,13 @@ def test_memory_is_known_before_allocation(device):
         allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)
         assert wetted_nbytes(grid, rho, keep_owners=keep, device=device, skin=skin) == surface.nbytes
         assert allocated == surface.nbytes
+    # Per particle: the stated bytes (past the thin list's minimum size on CUDA).
+    n = 16_000
+    surface = WettedSurface(grid, probe_radius=0.35, device=device)
+    surface.reserve(n)
+    sized = [surface.counts, surface.hits, surface.next_in_bin, surface.exposed, surface.thin_list, surface.thin_from]
+    extra = CUDA_BYTES_PER_PARTICLE if wp.get_device(device).is_cuda else 0
+    assert sum(a.capacity for a in sized) == n * (BYTES_PER_PARTICLE + extra)
 
 
 def test_connectivity_bound_is_counted_and_balance_holds(device):

@@ -83,10 +83,11 @@ __all__ = [
     "witness_capacity",
 ]
 
-#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag; on
-#: CUDA also the thin chords' list (:func:`thin_list_capacity`: 16 bytes per :data:`THIN_LIST_PER` sphere-axes) and
-#: 3 int32 for where each sphere-axis's chords left the list.
+#: Device bytes per particle: 3 int64 counts, one int32 hit count, one int32 bin link, one int32 exposure flag.
 BYTES_PER_PARTICLE = 36
+#: ... and on CUDA: the thin chords' list (:func:`thin_list_capacity`: 16 bytes per :data:`THIN_LIST_PER`
+#: sphere-axes, at least :data:`THIN_LIST_MIN` entries) and 3 int32 for where each sphere-axis's chords left it.
+CUDA_BYTES_PER_PARTICLE = 18
 #: Most bins of the nearest-sphere search (int32 heads); larger boxes get larger bins.
 MAX_BINS = 1 << 24
 #: Default bound on connectivity rounds; a solve that needs more stops there and is counted.
@@ -325,7 +326,8 @@ def wetted_nbytes(
     :data:`EXACT_QUEUE_PER` voxels) and the crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
     :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
     witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
-    Particles add :data:`BYTES_PER_PARTICLE` each (and :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
+    Particles add :data:`BYTES_PER_PARTICLE` each (on CUDA :data:`CUDA_BYTES_PER_PARTICLE` more, and
+    :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
     rho = check_probe_radius(probe_radius)
     lay = _layout(grid, rho)
     on = skin_distance(skin, lay["h"], rho) > 0.0
