@@ -1040,17 +1040,22 @@ class WettedSurface:
             return
         loads = [self.counts, self.hits, self.rays, self.diag, self.thin_faces]
         # wet_thin's inputs; wet_thin_listed's are these less active and fluid.
-        walk = [positions, radii, active, box, walls, self.fluid, self.reach, self.heads, self.next_in_bin]
-        walk += [self.rmax, self.exposed]
-        if self.thin_list.shape[0] == 0:
+        ins = [positions, radii, active, box, walls, self.fluid, self.reach, self.heads, self.next_in_bin]
+        ins += [self.rmax, self.exposed]
+
+        def walk():
+            # Every sphere-axis's chords, or (with the list) those from its first one the list could not hold.
             wp.launch(
                 K.wet_thin,
                 dim=3 * n,
-                inputs=[*walk, self.thin_from],
+                inputs=[*ins, self.thin_from],
                 outputs=loads,
                 device=d,
                 block_dim=SPARSE_BLOCK_DIM,
             )
+
+        if self.thin_list.shape[0] == 0:
+            walk()
             return
         # Listed (CUDA): a light scan lists the chords with fluid on both sides, a thread walks each, and the
         # walking kernel runs over the sphere-axes only when some chord did not fit in the list.
@@ -1066,23 +1071,12 @@ class WettedSurface:
         wp.launch(
             K.wet_thin_listed,
             dim=self.thin_list.shape[0],
-            inputs=[*walk[:2], box, walls, *walk[6:], self.thin_list, self.thin_listed],
+            inputs=[*ins[:2], box, walls, *ins[6:], self.thin_list, self.thin_listed],
             outputs=loads,
             device=d,
             block_dim=SPARSE_BLOCK_DIM,
         )
-
-        def overflow():
-            wp.launch(
-                K.wet_thin,
-                dim=3 * n,
-                inputs=[*walk, self.thin_from],
-                outputs=loads,
-                device=d,
-                block_dim=SPARSE_BLOCK_DIM,
-            )
-
-        wp.capture_if(self.thin_over, on_true=overflow)
+        wp.capture_if(self.thin_over, on_true=walk)
 
     def counts_numpy(self) -> np.ndarray:
         """Signed crossing counts of the last update, shape (N, 3), int64 (copies to the host)."""
