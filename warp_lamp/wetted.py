@@ -374,12 +374,14 @@ def witness_capacity(shape) -> int:
     return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
 
 
-def _packed_capacity(total: int, per: int, least: int, device) -> int:
-    """Slots of a CUDA work list over ``total`` items: one per ``per``, at least ``least``, at most ``total``; none
-    on the CPU, where one thread runs a launch and packing the work gains nothing (``device`` None: CUDA's rule)."""
+def _packed_capacity(total: int, per: int, least: int, device, *, capped: bool = True) -> int:
+    """Slots of a CUDA work list over ``total`` items: one per ``per``, at least ``least``, at most ``total`` when
+    ``capped`` (an item takes one slot); none on the CPU, where one thread runs a launch and packing the work gains
+    nothing (``device`` None: CUDA's rule)."""
     if device is not None and not device.is_cuda:
         return 0
-    return min(int(total), max(least, int(total) // per))
+    slots = max(least, int(total) // per)
+    return min(int(total), slots) if capped else slots
 
 
 def exact_queue_capacity(shape, device) -> int:
@@ -399,10 +401,9 @@ def cross_list_capacity(faces, device) -> int:
 
 def thin_list_capacity(n: int, device) -> int:
     """Thin chords the list holds on ``device`` for ``n`` particles: one per :data:`THIN_LIST_PER` (sphere, axis)
-    pairs, at least :data:`THIN_LIST_MIN`, on CUDA; none on the CPU; ``device`` None: CUDA's rule."""
-    if device is not None and not device.is_cuda:
-        return 0
-    return max(THIN_LIST_MIN, 3 * int(n) // THIN_LIST_PER)
+    pairs, at least :data:`THIN_LIST_MIN` (a sphere-axis may hold several), on CUDA; none on the CPU; ``device``
+    None: CUDA's rule."""
+    return _packed_capacity(3 * int(n), THIN_LIST_PER, THIN_LIST_MIN, device, capped=False)
 
 
 @dataclass
