@@ -22,12 +22,15 @@ def main() -> None:
     ap.add_argument("mode", choices=("area", "wetted"))
     ap.add_argument("--updates", type=int, default=6)
     ap.add_argument("--device", default="cuda:0")
+    ap.add_argument("--lineinfo", action="store_true", help="modules built with line info (ncu's source view)")
+    ap.add_argument("--cells", type=int, default=4, help="cells per diameter")
     args = ap.parse_args()
+    wp.config.lineinfo = args.lineinfo
     wp.init()
     device = wp.get_device(args.device)
     sc = scene_sphere_specimen()
     if args.mode == "area":
-        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4)
+        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=args.cells)
         lamp = wl.ShiningLamp(
             grid, device=device, criterion="area", resolver="subpoints", depth_slots=4, subpoints=8, gather="deep"
         )
@@ -38,7 +41,7 @@ def main() -> None:
             lamp.update(pos, rad, in_frame=True)
     else:
         rho = float(sc.radii.mean())
-        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=3.0 * rho)
+        grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=args.cells, margin=3.0 * rho)
         surf = WettedSurface(grid, probe_radius=rho, device=device)
         pos = wp.array((sc.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
         rad = wp.array(sc.radii.astype(np.float32), dtype=wp.float32, device=device)
