@@ -42,7 +42,7 @@ surface depths (sub-points) or the raster (exact); the clip itself only ever see
 
 import warp as wp
 
-from warp_lamp.kernels.grid import LampGridParams, grid_cell, grid_to_frame
+from warp_lamp.kernels.grid import LampGridParams, frame_point, grid_cell
 from warp_lamp.kernels.keys import EMPTY_KEY, key_owner, pack_key
 from warp_lamp.kernels.lamp import LampParticles, frame_sphere
 
@@ -416,6 +416,7 @@ def subpoint_shares_rows(
     su = hu / float(s)
     sv = hv / float(s)
     row_bits = (wp.uint64(1) << wp.uint64(s)) - wp.uint64(1)
+    row_full = wp.uint32(row_bits)
     taken = wp.uint64(0)
     left = s * s
     for m in range(count):
@@ -427,7 +428,10 @@ def subpoint_shares_rows(
         won = int(0)
         for k in range(s):
             shift = wp.uint64(k * s)
-            if ((taken >> shift) & row_bits) == row_bits:
+            # The row's points in 32 bits: the per-point tests and updates were most of this loop's instructions
+            # in 64-bit shifts and masks.
+            row = wp.uint32((taken >> shift) & row_bits)
+            if row == row_full:
                 continue
             tx = (float(k) + 0.5) * su
             dx = tx - xm
@@ -435,13 +439,14 @@ def subpoint_shares_rows(
             if m != full and ax > r2:
                 continue
             for kv in range(s):
-                bit = wp.uint64(1) << (shift + wp.uint64(kv))
-                if (taken & bit) == wp.uint64(0):
+                bit = wp.uint32(1) << wp.uint32(kv)
+                if (row & bit) == wp.uint32(0):
                     ty = (float(kv) + 0.5) * sv
                     dy = ty - ym
                     if m == full or ax + dy * dy <= r2:
-                        taken = taken | bit
+                        row = row | bit
                         won += 1
+            taken = taken | (wp.uint64(row) << shift)
         shares[m] = float(won)
         left -= won
     return shares
@@ -640,34 +645,47 @@ def side_seeds(
     oz = vec_seed_f()
     rr = vec_seed_f()
     count = int(0)
-    for mm in range(passes * (4 * d + 8)):
-        # Candidates: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0 (then the other
-        # lamp's, with GATHER_BOTH).
-        m = mm % (4 * d + 8)
-        key_side = side
-        if mm >= 4 * d + 8:
-            key_side = 1 - side
-        di = int(0)
-        dj = int(0)
-        slot = int(0)
-        if m < 4 * d:
-            corner = m / d
-            slot = m - corner * d
-            di = corner % 2
-            dj = corner / 2
+    # The frame read once: every candidate is moved into it alike.
+    frame_o = grid.origin[0]
+    frame_r = grid.rotation[0]
+    # Candidates in this order: corner samples (0,0) (1,0) (0,1) (1,1), all D slots; then the ring, slot 0 (then
+    # the other lamp's, with GATHER_BOTH). Counters, not divisions of the loop index: the gather's index arithmetic
+    # was a third of its instructions on CUDA (D is known only at run time).
+    corner = int(0)
+    slot = int(-1)
+    ring = int(-1)
+    key_side = side
+    for _mm in range(passes * (4 * d + 8)):
+        if ring < 0:
+            slot += 1
+            if slot == d:
+                slot = 0
+                corner += 1
+                if corner == 4:
+                    ring = 0
         else:
-            ring = m - 4 * d
+            ring += 1
+            if ring == 8:
+                ring = -1
+                corner = 0
+                slot = 0
+                key_side = 1 - side
+        di = corner & 1
+        dj = corner >> 1
+        sl = slot
+        if ring >= 0:
+            sl = 0
             if ring < 4:
                 di = wp.where(ring < 2, -1, 2)
-                dj = ring % 2
+                dj = ring & 1
             else:
-                di = ring % 2
+                di = ring & 1
                 dj = wp.where(ring < 6, -1, 2)
         si = i + di
         sj = j + dj
         if si < 0 or si > nu or sj < 0 or sj > nv:
             continue
-        key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + key_side) * d + slot]
+        key = keys[(2 * (sample_offset[a] + sj * (nu + 1) + si) + key_side) * d + sl]
         if key == EMPTY_KEY:
             continue
         pid = key_owner(key)
@@ -675,9 +693,10 @@ def side_seeds(
         for k in range(count):
             if ids[k] == pid:
                 dup = 1
+                break
         if dup != 0:
             continue
-        p = grid_to_frame(grid, particles.positions[pid])
+        p = frame_point(frame_o, frame_r, particles.positions[pid])
         r = particles.radii[pid]
         cx = (p[(a + 1) % 3] - grid.corner_u[a]) - x0
         cy = (p[(a + 2) % 3] - grid.corner_v[a]) - y0
@@ -1156,7 +1175,7 @@ def _area_kernels(exact: bool):
 AREA_DEFERRED = {RESOLVER_SUBPOINTS: _area_kernels(False), RESOLVER_EXACT: _area_kernels(True)}
 
 
-def _side_kernels(exact: bool):
+def _side_kernels(exact: bool, max_registers: int | None = None):
     """The cell pass with a thread per (lamp side, cell) instead of one per cell, for one resolver: each thread
     runs one lamp's gather, order and resolution (a cell's two lamps share no seeds, so one thread per cell ran two
     independent chains back to back and the pass waited for the longest pair), leaves its shares in ``sides``, and a
@@ -1167,7 +1186,6 @@ def _side_kernels(exact: bool):
     holds neighbouring cells of one lamp, whose seeds and branches are alike."""
     rows_per_cell = RASTER
 
-    @wp.kernel
     def area_sides(
         grid: LampGridParams,
         particles: LampParticles,
@@ -1220,6 +1238,13 @@ def _side_kernels(exact: bool):
             work[slot] = q
             work_items[slot] = t
         sides[t] = out
+
+    if max_registers is None:
+        area_sides = wp.kernel(area_sides)
+    else:
+        # A register cap (``__maxnreg__``) trades spills for resident warps in this latency-bound pass.
+        name = f"area_sides_{'exact' if exact else 'sub'}_r{max_registers}"
+        area_sides = wp.kernel(area_sides, name=name, cuda_max_registers=max_registers)
 
     @wp.kernel
     def area_side_rows(
@@ -1319,6 +1344,8 @@ def area_hidden(
         return
     bits = hidden[b]
     rb = sphere.radius
+    frame_o = grid.origin[0]
+    frame_r = grid.rotation[0]
     for a in range(3):
         if ((lamp_mask >> (2 * a)) & 3) == 0:
             continue
@@ -1343,8 +1370,7 @@ def area_hidden(
                 h = key_owner(key)
                 if h == b:
                     continue
-                ph = wp.vec3()
-                ph = grid_to_frame(grid, particles.positions[h])
+                ph = frame_point(frame_o, frame_r, particles.positions[h])
                 rh = particles.radii[h]
                 du = pu - (ph[(a + 1) % 3] - grid.corner_u[a])
                 dv = pv - (ph[(a + 2) % 3] - grid.corner_v[a])

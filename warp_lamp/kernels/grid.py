@@ -31,10 +31,15 @@ class LampGridParams:
 
 @wp.func
 def grid_to_frame(grid: LampGridParams, x: wp.vec3) -> wp.vec3:
+    """Frame coordinates R^T (x - o) of a world position (:func:`frame_point` with the grid's frame)."""
+    return frame_point(grid.origin[0], grid.rotation[0], x)
+
+
+@wp.func
+def frame_point(o: wp.vec3, r: wp.mat33, x: wp.vec3) -> wp.vec3:
     """Frame coordinates R^T (x - o) of a world position, in a fixed order of operations, so that the identity
-    leaves x - o bitwise as it is: 1 q + 0 + 0 = q."""
-    q = x - grid.origin[0]
-    r = grid.rotation[0]
+    leaves x - o bitwise as it is: 1 q + 0 + 0 = q. A loop over many particles reads o and R once and calls this."""
+    q = x - o
     return wp.vec3(
         r[0, 0] * q[0] + r[1, 0] * q[1] + r[2, 0] * q[2],
         r[0, 1] * q[0] + r[1, 1] * q[1] + r[2, 1] * q[2],
