@@ -421,9 +421,6 @@ class AreaSplit(FirstHit):
         #: below slot D (``bench/experiments/area_gather_study.py``); twice the candidates per cell.
         self.gather_both = False
         self._sides = None
-        #: The side pass's three kernels, if not the shipped ones for the resolver (an experiment's variants, e.g.
-        #: ``kernels/area.py`` ``_side_kernels(exact, max_registers)``, made before the module's first launch).
-        self.side_kernels = None
         #: The side pass's sub-points of a decided cell seed by seed, with a mask of the points taken
         #: (``kernels/area.py`` ``subpoint_shares_rows``, S <= 8), instead of point by point. Bitwise the same.
         self.subpoint_rows = self.SUBPOINT_ROWS
@@ -630,7 +627,7 @@ class AreaSplit(FirstHit):
 
     def _launch_sides(self, shared: list, counts: wp.array) -> None:
         # A thread per (lamp, cell), the undecided lamps' rows of points (``defer``), a payout per cell.
-        sides_k, rows_k, payout_k = self.side_kernels or area_kernels.AREA_SIDES[shared[6]]
+        sides_k, rows_k, payout_k = area_kernels.AREA_SIDES[shared[6]]
         d = self.device
         w = self._work
         if w is None:

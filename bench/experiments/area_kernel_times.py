@@ -30,10 +30,8 @@ DEEP = {"criterion": "area", "resolver": "subpoints", "depth_slots": 4, "subpoin
 EXACT_DEEP = {"criterion": "area", "resolver": "exact", "depth_slots": 4, "gather": "deep"}
 
 
-def one_row(label, scene, grid, options, device, repeats, cap=None):
+def one_row(label, scene, grid, options, device, repeats):
     lamp = wl.ShiningLamp(grid, device=device, **options)
-    if cap is not None:
-        lamp.estimator.side_kernels = CAPPED[(options["resolver"] == "exact", cap)]
     pos = wp.array(grid.to_frame(scene.centers).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
 
@@ -43,7 +41,7 @@ def one_row(label, scene, grid, options, device, repeats, cap=None):
     update()
     update()
     counts = lamp.counts_numpy()
-    row = {"row": label, "options": options, "cap": cap, "hash": hashlib.sha256(counts.tobytes()).hexdigest()[:16]}
+    row = {"row": label, "options": options, "hash": hashlib.sha256(counts.tobytes()).hexdigest()[:16]}
     if device.is_cuda:
         with wp.ScopedCapture(device=device) as cap:
             update()
@@ -64,29 +62,13 @@ def one_row(label, scene, grid, options, device, repeats, cap=None):
     return row
 
 
-def capped_kernels(caps):
-    """The side pass's kernels with ``area_sides`` capped at each register count, made before the module's first
-    launch (so that it builds once, with them)."""
-    from warp_lamp.kernels.area import _side_kernels
-
-    for cap in caps:
-        for exact in (False, True):
-            CAPPED[(exact, cap)] = _side_kernels(exact, cap)
-
-
-CAPPED = {}
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--repeats", type=int, default=9)
     ap.add_argument("--quick", action="store_true", help="the specimen's rows only (a CPU check of the script)")
     ap.add_argument("--out", default=None)
-    ap.add_argument("--caps", nargs="*", type=int, default=[], help="register caps of the cell pass to time too")
     args = ap.parse_args()
-    if args.caps:
-        capped_kernels(args.caps)
     wp.init()
     device = wp.get_device(args.device)
     spec = scene_sphere_specimen()
@@ -105,18 +87,15 @@ def main():
             if k is None
             else wl.LampGrid.enclosing(scene.centers, scene.radii, cells_per_diameter=k)
         )
-        caps = [None] + (args.caps if options["criterion"] == "area" else [])
-        for cap in caps:
-            row = one_row(label, scene, grid, options, device, args.repeats, cap)
-            out["rows"].append(row)
-            ks = row.get("kernels_ms", {})
-            print(
-                f"== {label} (cap {cap}): replay {row['replay_ms']:.4f} ms, kernels sum {sum(ks.values()):.4f} ms,"
-                f" counts {row['hash']}"
-            )
-            for name, v in sorted(ks.items(), key=lambda kv: -kv[1])[:10]:
-                print(f"   {name[:44]:44s} {v:9.4f} ms")
-            sys.stdout.flush()
+        row = one_row(label, scene, grid, options, device, args.repeats)
+        out["rows"].append(row)
+        ks = row.get("kernels_ms", {})
+        print(
+            f"== {label}: replay {row['replay_ms']:.4f} ms, kernels sum {sum(ks.values()):.4f} ms, counts {row['hash']}"
+        )
+        for name, v in sorted(ks.items(), key=lambda kv: -kv[1])[:10]:
+            print(f"   {name[:44]:44s} {v:9.4f} ms")
+        sys.stdout.flush()
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
 
