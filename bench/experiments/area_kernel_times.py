@@ -13,7 +13,6 @@ import argparse
 import hashlib
 import json
 import sys
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,9 @@ import warp_lamp as wl
 from warp_lamp.bench import lattice_grid
 from warp_lamp.scenes import scene_lattice_box, scene_sphere_specimen
 from warp_lamp.timing import time_median_events
+
+sys.path.insert(0, str(Path(__file__).parent))
+from kernel_times import activity_times, print_top
 
 C1 = {"criterion": 1}
 S3 = {"criterion": "area", "resolver": "subpoints", "depth_slots": 3, "subpoints": 8}
@@ -46,17 +48,7 @@ def one_row(label, scene, grid, options, device, repeats):
         with wp.ScopedCapture(device=device) as cap:
             update()
         row["replay_ms"] = 1e3 * time_median_events(lambda: wp.capture_launch(cap.graph), device, repeats=3 * repeats)
-        per = defaultdict(list)
-        for _ in range(repeats):
-            wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET)
-            update()
-            results = wp.timing_end()
-            seen = defaultdict(float)
-            for r in results:
-                seen[r.name.split("_cuda_kernel")[0]] += r.elapsed
-            for k, v in seen.items():
-                per[k].append(v)
-        row["kernels_ms"] = {k: float(np.median(v)) for k, v in per.items()}
+        row["kernels_ms"] = activity_times(update, repeats)
     else:
         row["replay_ms"] = 1e3 * time_median_events(update, device, repeats=repeats)
     return row
@@ -93,8 +85,7 @@ def main():
         print(
             f"== {label}: replay {row['replay_ms']:.4f} ms, kernels sum {sum(ks.values()):.4f} ms, counts {row['hash']}"
         )
-        for name, v in sorted(ks.items(), key=lambda kv: -kv[1])[:10]:
-            print(f"   {name[:44]:44s} {v:9.4f} ms")
+        print_top(ks, 10)
         sys.stdout.flush()
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))

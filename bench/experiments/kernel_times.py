@@ -19,6 +19,28 @@ from wetted_bench import grid_for, scenes
 from warp_lamp.wetted import WettedSurface
 
 
+def activity_times(update, repeats: int) -> dict:
+    """Median GPU time [ms] per kernel name (memsets as one) over ``repeats`` eager calls of ``update``, from
+    Warp's CUDA activity timing; a kernel launched several times in one update counts its sum."""
+    per = defaultdict(list)
+    for _ in range(repeats):
+        wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET)
+        update()
+        results = wp.timing_end()
+        seen = defaultdict(float)
+        for r in results:
+            seen[r.name.split("_cuda_kernel")[0]] += r.elapsed
+        for k, v in seen.items():
+            per[k].append(v)
+    return {k: float(np.median(v)) for k, v in per.items()}
+
+
+def print_top(kernels_ms: dict, most: int = 12) -> None:
+    """The ``most`` costliest kernels of an ``activity_times`` result, one line each."""
+    for k, v in sorted(kernels_ms.items(), key=lambda kv: -kv[1])[:most]:
+        print(f"   {k[:44]:44s} {v:9.4f} ms")
+
+
 def kernel_times(name, scene, cell, device, repeats, thin_list):
     rho = float(scene.radii.mean())
     grid = grid_for(scene, cell, rho)
@@ -29,18 +51,8 @@ def kernel_times(name, scene, cell, device, repeats, thin_list):
         surf._thin_list(0)
     surf.update(pos, rad)
     surf.update(pos, rad)
-    per = defaultdict(list)
-    for _ in range(repeats):
-        wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMSET)
-        surf.update(pos, rad)
-        results = wp.timing_end()
-        seen = defaultdict(float)
-        for r in results:
-            seen[r.name.split("_cuda_kernel")[0]] += r.elapsed
-        for k, v in seen.items():
-            per[k].append(v)
+    rows = activity_times(lambda: surf.update(pos, rad), repeats)
     d = surf.diagnostics()
-    rows = {k: float(np.median(v)) for k, v in per.items()}
     return {
         "scene": scene.name,
         "thin_list": thin_list,
@@ -70,8 +82,7 @@ def main():
             row = kernel_times(name, scene, cell, device, args.repeats, tl)
             out["rows"].append(row)
             print(f"== {scene.name} thin list {tl}: thin {row['thin']}, listed {row['thin_listed']}")
-            for k, v in sorted(row["kernels_ms"].items(), key=lambda kv: -kv[1])[:12]:
-                print(f"   {k[:40]:40s} {v:9.4f} ms")
+            print_top(row["kernels_ms"])
             sys.stdout.flush()
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
