@@ -92,18 +92,15 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
     return d
 
 
-#: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list, thin list,
-#: lanes per queued test): the tests queued or not, the queue too small for the band (the rest tested by the classify
-#: threads), each path of the exact test; the crossings and thin chords listed for a thread each, none listed, or the
-#: lists too small (the rest loaded where found, or walked by the sphere-axis threads from their first chord left
-#: out); a queued test on one thread, or sharing its candidates among up to 3, 4 or 8 (most lanes, threads held at
-#: once: 3 lanes for the 300 queued, 4 and 8 for every count), the bin-walk search and the walls' on lane 0 alone.
+#: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list, thin list):
+#: the tests queued or not, the queue too small for the band (the rest tested by the classify threads), each path of
+#: the exact test; the crossings and thin chords listed for a thread each, none listed, or the lists too small (the
+#: rest loaded where found, or walked by the sphere-axis threads from their first chord left out).
 DECOMPOSITIONS = (
-    (3, 8, 0, 0, 1 << 20, 128, 1 << 20, 1 << 20, (4, 1 << 30)),
-    (8, 1, 2, 0, 300, 0, 0, 0, (3, 1000)),
-    (1, 32, 64, 65, 0, 5, 37, 3, (1, 0)),
-    (1, 32, 64, 0, 1 << 20, 128, 0, 1 << 20, (8, 1 << 30)),
-    (1, 32, 64, 0, 1 << 20, 128, 0, 1 << 20, (1, 0)),
+    (3, 8, 0, 0, 1 << 20, 128, 1 << 20, 1 << 20),
+    (8, 1, 2, 0, 300, 0, 0, 0),
+    (1, 32, 64, 65, 0, 5, 37, 3),
+    (1, 32, 64, 0, 1 << 20, 128, 0, 1 << 20),
 )
 
 
@@ -124,10 +121,10 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
     # the second gather and the bin-walk search; no pruning of covered spheres; the spheres gathered once per point
     # for its candidates' searches, none or only 5 of them: the bins walked per candidate) and the crossings listed
     # or not (the list overflowing) give the same answer.
-    for slices, bits, near, prune, capacity, gather, listed, thin_listed, lanes in DECOMPOSITIONS:
+    for slices, bits, near, prune, capacity, gather, listed, thin_listed in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
-        surface._exact_queue(capacity, lanes=lanes)
+        surface._exact_queue(capacity)
         surface._cross_list(listed)
         surface._thin_list(thin_listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
@@ -774,10 +771,10 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune, capacity, gather, listed, thin_listed, lanes in DECOMPOSITIONS:
+    for slices, bits, near, prune, capacity, gather, listed, thin_listed in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
-        surface._exact_queue(capacity, lanes=lanes)
+        surface._exact_queue(capacity)
         surface._cross_list(listed)
         surface._thin_list(thin_listed)
         surface.update(*device_arrays(centers - grid.origin, radii, device))

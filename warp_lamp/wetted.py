@@ -110,11 +110,6 @@ EXACT_QUEUE_MIN = 4096
 #: thread, one block of 256 fills an SM's registers, so on the specimen 15,915 queued tests ran on 63 of the H200's
 #: 132 SMs and the thin chords on 55 (Nsight Compute, 2026-11-28); blocks of 64 spread them over every SM.
 SPARSE_BLOCK_DIM = 64
-#: Most threads one queued exact test may share its candidates among, and the threads an SM holds of a kernel at 255
-#: registers (64K registers: four blocks of 64): a specimen's ~16k tests fill half an H200 one thread each, and the
-#: update waits for the slowest test.
-TEST_LANES = 8
-RESIDENT_PER_SM = 256
 #: The crossing list (CUDA) holds one crossing per this many voxel faces (the bench's scenes cross about one face in
 #: 60 to 110; past the list the crossings are loaded where they are found) ...
 CROSS_LIST_PER = 32
@@ -702,17 +697,9 @@ class WettedSurface:
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
         self.n = 0
 
-    def _exact_queue(self, capacity: int, *, lanes: tuple[int, int] | None = None) -> None:
+    def _exact_queue(self, capacity: int) -> None:
         """Queue up to ``capacity`` exact tests for one thread each (0: none; the tests and the benchmark's A/B
-        set it on either device); the answer is the same. ``lanes`` (most lanes per test, threads the device holds
-        at once): a test shares its candidates among up to that many threads while the tests are fewer than the
-        device holds (``kernels/wetted.py`` ``wet_classify_queued``); None: the device's rule (CUDA: up to
-        :data:`TEST_LANES`, :data:`RESIDENT_PER_SM` threads per multiprocessor; the CPU: one); the answer is the
-        same."""
-        if lanes is None:
-            d = self.device
-            lanes = (TEST_LANES, d.sm_count * RESIDENT_PER_SM) if d.is_cuda else (1, 0)
-        self._test_lanes = (int(lanes[0]), int(lanes[1]))
+        set it on either device); the answer is the same."""
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
@@ -959,11 +946,9 @@ class WettedSurface:
             device=d,
         )
         if self._capacity > 0:
-            lanes_max, resident = self._test_lanes
-            # Threads with lanes share at most `resident` of them; one per test otherwise.
             wp.launch(
                 K.wet_classify_queued,
-                dim=max(self._capacity, resident if lanes_max > 1 else 0),
+                dim=self._capacity,
                 inputs=[
                     positions,
                     radii,
@@ -974,13 +959,12 @@ class WettedSurface:
                     self.next_in_bin,
                     self.rmax,
                     self.exposed,
+                    self.queue,
                     self.queued,
                     self.skin,
                     n,
-                    lanes_max,
-                    resident,
                 ],
-                outputs=[self.queue, self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
+                outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
                 device=d,
                 block_dim=SPARSE_BLOCK_DIM,
             )

@@ -93,11 +93,6 @@ from warp_lamp.kernels.wetted_base import (
 # The same options in every module of the wetted surface (kernels/wetted_base.py says why).
 wp.set_module_options({"enable_backward": False, "fuse_fp": False, "max_unroll": 1})
 
-#: A queue entry's voxel (word * 32 + bit), and the bit a lane sets in it when it finds the voxel wet
-#: (``wet_classify_queued``).
-QUEUE_INDEX = wp.constant(0x7FFFFFFF)
-QUEUE_FOUND = wp.constant(-0x80000000)
-
 
 @wp.func
 def outside_ok(walls: LampWalls, thr: wp.float64, ijk: wp.vec3i, box: WetBox) -> wp.bool:
@@ -1053,8 +1048,6 @@ def probe_search(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    lane: wp.int32,
-    lanes: wp.int32,
 ) -> wp.vec4i:
     """``probe_reaches`` with its witness: (i, j, k, t) of the valid candidate it found on spheres alone (a radial
     projection on i: j = k = -1; a circle point of i < j: k = -1; point t of the triple i < j < k), (-1, ...) for
@@ -1067,13 +1060,7 @@ def probe_search(
     in increasing index order, triples only on circles that pass within rho); then those with walls
     (``wall_search``). Only exposed spheres (``wet_expose``) within r + 2 rho of x can carry a reachable candidate
     within rho. For a voxel centre the caller has checked the solid map (``|x - c|^2 < r^2`` or ``g < 0``); for
-    another point it is checked here.
-
-    ``lanes`` threads may share one test (``lane`` = 0 .. lanes - 1, each with the same x; only for a voxel
-    centre, ``lattice`` 1): every lane builds the same candidates in the same order and checks every lanes-th one
-    from its own, and lane 0 alone runs the searches that come after or instead of them (the bin walk and the
-    walls'). x is fluid when some lane finds a candidate; a lane's witness is the first it found, not necessarily
-    the test's."""
+    another point it is checked here."""
     rho = box.rho
     rho2 = rho * rho
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
@@ -1183,8 +1170,6 @@ def probe_search(
                                     cnt += 1
                             i = next_in_bin[i]
         if cnt > limit:
-            if lane != 0:
-                return wp.vec4i(-2, -1, -1, 0)
             if probe_walk(x, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
                 return wp.vec4i(-1, -1, -1, 0)
             if wall_search(x, ids, 0, 0, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
@@ -1221,8 +1206,6 @@ def probe_search(
             b -= 1
         ids[b + 1] = key
     hint = int(-1)
-    # This lane checks the candidates whose turn is its own (all of them with one lane).
-    turn = int(0)
     if (box.skip & 16) != 0:
         return wp.vec4i(-2, -1, -1, 0)
     # Faces: the commonest answer, so first.
@@ -1235,16 +1218,13 @@ def probe_search(
             z = c + v * ((wp.float64(radii[i]) + rho) / wp.sqrt(d2))
             w = x - z
             if dot3(w, w) <= rho2:
-                mine = turn == lane
-                turn = wp.where(turn + 1 == lanes, 0, turn + 1)
-                if mine:
-                    res = candidate_check_list(
-                        x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
-                    )
-                    if res == CANDIDATE_OK:
-                        return wp.vec4i(i, -1, -1, 0)
-                    if res >= 0:
-                        hint = res
+                res = candidate_check_list(
+                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                )
+                if res == CANDIDATE_OK:
+                    return wp.vec4i(i, -1, -1, 0)
+                if res >= 0:
+                    hint = res
     # Edges, and the vertices on every circle that passes within rho of x.
     for a in range(cnt):
         i = ids[a]
@@ -1260,17 +1240,13 @@ def probe_search(
                 w = x - z
                 e2 = dot3(w, w)
                 if e2 <= rho2:
-                    mine = turn == lane
-                    turn = wp.where(turn + 1 == lanes, 0, turn + 1)
-                    if mine:
-                        res = candidate_check_list(
-                            x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids,
-                            g.n,
-                        )
-                        if res == CANDIDATE_OK:
-                            return wp.vec4i(i, j, -1, 0)
-                        if res >= 0:
-                            hint = res
+                    res = candidate_check_list(
+                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                    )
+                    if res == CANDIDATE_OK:
+                        return wp.vec4i(i, j, -1, 0)
+                    if res >= 0:
+                        hint = res
                 if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
                     for e in range(b + 1, cnt):
                         k = ids[e]
@@ -1281,11 +1257,7 @@ def probe_search(
                             for t in range(2):
                                 z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
                                 w = x - z
-                                mine = wp.bool(False)
                                 if dot3(w, w) <= rho2:
-                                    mine = turn == lane
-                                    turn = wp.where(turn + 1 == lanes, 0, turn + 1)
-                                if mine:
                                     res = candidate_check_list(
                                         x,
                                         z,
@@ -1308,9 +1280,8 @@ def probe_search(
                                         return wp.vec4i(i, j, k, t)
                                     if res >= 0:
                                         hint = res
-    if lane == 0:
-        if wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
-            return wp.vec4i(-1, -1, -1, 0)
+    if wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        return wp.vec4i(-1, -1, -1, 0)
     return wp.vec4i(-2, -1, -1, 0)
 
 
@@ -1329,7 +1300,7 @@ def probe_reaches(
     walls: LampWalls,
 ) -> wp.bool:
     """Whether x is fluid by exact distances (``probe_search``, whose docstring says how)."""
-    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls, 0, 1)
+    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
     return w[0] != -2
 
 
@@ -1884,7 +1855,7 @@ def wet_classify(
                     witnessed += 1
                     continue
         x = voxel_point(wjk, b, box)
-        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, 0, 1)
+        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
@@ -1920,13 +1891,11 @@ def wet_classify_queued(
     next_in_bin: wp.array[wp.int32],
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
+    queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
     shrink: wp.float64,
     n_particles: wp.int32,
-    lanes_max: wp.int32,
-    resident: wp.int32,
     # outputs
-    queue: wp.array[wp.int32],
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
@@ -1934,26 +1903,13 @@ def wet_classify_queued(
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
 ):
-    """Threads for the queued voxels (``wet_classify``), launched for the queue's capacity times ``lanes_max``: the
-    exact tests packed into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle.
-    With the skin, a voxel's witness is re-checked here first; a voxel tested dry gets its certificate here, one
-    tested wet its witness.
-
-    Without the skin, when the tests are fewer than ``resident`` (the threads the device holds at once), each test
-    runs on ``lanes`` = min(resident / tests, lanes_max) threads that share its candidates (``probe_search``): the
-    update waits for its slowest test, and a lone thread per test left most of the device idle. The first lane
-    to find the voxel wet marks its queue entry (bit 31) and alone sets the bit and counts it: the same map and
-    counts as one thread per test."""
-    t = wp.tid()
-    count = wp.min(queued[0], queue.shape[0])
-    lanes = int(1)
-    if kept.shape[0] == 0 and count > 0:
-        lanes = wp.clamp(resident / count, 1, lanes_max)
-    if t >= count * lanes:
+    """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
+    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel's
+    witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its witness."""
+    slot = wp.tid()
+    if slot >= queued[0]:
         return
-    slot = t / lanes
-    lane = t - slot * lanes
-    v = queue[slot] & QUEUE_INDEX
+    v = queue[slot]
     idx = v / 32
     b = v - idx * 32
     wjk = word_coords(box, idx)
@@ -1969,16 +1925,12 @@ def wet_classify_queued(
                 wp.atomic_add(diag, DIAG_RESCUED, 1)
                 wp.atomic_add(skin, SKIN_WITNESSED, 1)
                 return
-    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, lane, lanes)
+    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
     if kept.shape[0] > 0:
         witness_store(v, found, keys, wits, skin)
     if found[0] != -2:
-        first = wp.bool(True)
-        if lanes > 1:
-            first = wp.atomic_cas(queue, slot, v, v | QUEUE_FOUND) == v
-        if first:
-            wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
-            wp.atomic_add(diag, DIAG_RESCUED, 1)
+        wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+        wp.atomic_add(diag, DIAG_RESCUED, 1)
     elif kept.shape[0] > 0:
         if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
             wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
