@@ -1094,8 +1094,8 @@ def _run(args) -> int:
     fm = report["force_N"]
     if lit_mag.size:
         say(
-            f"forces     |F| on lit particles: min {fm['min_lit']:.4g}, mean {fm['mean_lit']:.4g}, max "
-            f"{fm['max']:.4g}; total |F| {fm['total']:.4g} {force}"
+            f"forces     |F| on lit particles: min {fm['min_lit']:.4g} {force}, mean {fm['mean_lit']:.4g} {force}, max "
+            f"{fm['max']:.4g} {force}; total |F| {fm['total']:.4g} {force}"
         )
     else:
         say("forces     no particle is lit: the lamp loads nothing (is the grid finer than the body?)")
