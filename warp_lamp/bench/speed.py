@@ -171,7 +171,9 @@ def time_reference(scene: Scene, grid: LampGrid, criterion: int) -> dict:
 # --- driver -----------------------------------------------------------------------------------------------
 
 
-def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, sizes=None, repeats=None) -> dict:
+def bench_lamp(
+    devices=None, *, quick: bool = False, progress: bool = True, sizes=None, repeats=None, modes: bool = True
+) -> dict:
     """Run the lamp benchmark and return its results as a JSON-ready dict.
 
     Args:
@@ -180,6 +182,8 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
         progress: Show a progress bar on stderr.
         sizes: Lattice sizes per axis to time (default: 22, 46, 100 on CPU; up to 300 on CUDA; 22 when quick).
         repeats: Timed repeats per figure.
+        modes: Also run :func:`~warp_lamp.bench.modes.bench_modes` (small bodies, area, wetted, frames); off, the
+            speed, sweep and error sections alone (``bench/experiments/bench_split.py`` runs the two on two GPUs).
     """
     devices = [wp.get_device(d) for d in (devices or ["cpu"] + [d.alias for d in wp.get_cuda_devices()])]
     cpds = (2, 4, 8, 16)
@@ -252,7 +256,8 @@ def bench_lamp(devices=None, *, quick: bool = False, progress: bool = True, size
                 )
                 bar.step(f"{device.alias} sweep c{criterion} d/{k}")
     bar.close()
-    result.update(bench_modes(devices, quick=quick, progress=progress, repeats=repeats))
+    if modes:
+        result.update(bench_modes(devices, quick=quick, progress=progress, repeats=repeats))
     return result
 
 
