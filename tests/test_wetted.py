@@ -92,15 +92,16 @@ def assert_matches(surface, ref, *, lamps_mask=0b111111):
     return d
 
 
-#: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list, thin list):
-#: the tests queued or not, the queue too small for the band (the rest tested by the classify threads), each path of
-#: the exact test; the crossings and thin chords listed for a thread each, none listed, or the lists too small (the
-#: rest loaded where found, or walked by the sphere-axis threads from their first chord left out).
+#: (threads per sphere, bits per thread, near list, prune from, exact-test queue, gather, crossing list, thin list,
+#: reach masks from): the tests queued or not, the queue too small for the band (the rest tested by the classify
+#: threads), each path of the exact test (its reach masks always, never or from 6 near spheres); the crossings and
+#: thin chords listed for a thread each, none listed, or the lists too small (the rest loaded where found, or walked
+#: by the sphere-axis threads from their first chord left out).
 DECOMPOSITIONS = (
-    (3, 8, 0, 0, 1 << 20, 128, 1 << 20, 1 << 20),
-    (8, 1, 2, 0, 300, 0, 0, 0),
-    (1, 32, 64, 65, 0, 5, 37, 3),
-    (1, 32, 64, 0, 1 << 20, 128, 0, 1 << 20),
+    (3, 8, 0, 0, 1 << 20, 128, 1 << 20, 1 << 20, 0),
+    (8, 1, 2, 0, 300, 0, 0, 0, 1 << 20),
+    (1, 32, 64, 65, 0, 5, 37, 3, 6),
+    (1, 32, 64, 0, 1 << 20, 128, 0, 1 << 20, 0),
 )
 
 
@@ -121,9 +122,10 @@ def test_crossings_match_reference_on_random_scenes(device, rng, rho):
     # the second gather and the bin-walk search; no pruning of covered spheres; the spheres gathered once per point
     # for its candidates' searches, none or only 5 of them: the bins walked per candidate) and the crossings listed
     # or not (the list overflowing) give the same answer.
-    for slices, bits, near, prune, capacity, gather, listed, thin_listed in DECOMPOSITIONS:
+    for slices, bits, near, prune, capacity, gather, listed, thin_listed, masks in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
+        surface._box.mask_from = masks
         surface._exact_queue(capacity)
         surface._cross_list(listed)
         surface._thin_list(thin_listed)
@@ -511,6 +513,24 @@ def test_zero_probe_immersed_spheres_cancel(device, rng):
     assert net.sum() < 0.1 * d.hits[inner].sum(), (net.sum(), d.hits[inner].sum())
 
 
+def test_reach_masks_on_nearly_collinear_triples(device, rng):
+    """The exact test's reach masks skip no valid candidate where triples are ill-conditioned: a cubic lattice of
+    touching spheres jittered by ~1e-4 of the spacing (rows of nearly collinear centres), masks always and never,
+    against the reference."""
+    idx = np.stack(np.meshgrid(*[np.arange(5)] * 3, indexing="ij"), axis=-1).reshape(-1, 3).astype(np.float64)
+    jitter = np.round(rng.uniform(-1.0, 1.0, idx.shape) * 16.0) / 2.0**17  # dyadic: float32 holds it exactly
+    centers = 1.0 + idx + jitter
+    radii = np.full(len(centers), 0.5)
+    grid = wl.LampGrid([-0.5] * 3, [6.5] * 3, 0.25)
+    ref = wetted_reference(centers, radii, grid, probe_radius=0.45)
+    surface = wetted_solve(centers, radii, probe_radius=0.45, grid=grid, keep_owners=True, device=device)
+    for masks in (0, 1 << 20):
+        surface._box.mask_from = masks
+        surface.update(*device_arrays(centers - grid.origin, radii, device))
+        d = assert_matches(surface, ref)
+        assert d.rescued > 100  # the exact test decided many voxels
+
+
 # --- hard cases and bad input -----------------------------------------------------------------------------
 
 
@@ -771,9 +791,10 @@ def test_walls_match_reference_on_random_scenes(device, rng, rho):
         assert d.surface.sum() > 20 and (rho == 0.0 or d.rescued > 300)
         free = wetted_solve(centers, radii, probe_radius=rho, grid=grid, device=device).diagnostics()
         assert (free.fluid & ~d.fluid).sum() > 1000  # the walls cut the fluid
-    for slices, bits, near, prune, capacity, gather, listed, thin_listed in DECOMPOSITIONS:
+    for slices, bits, near, prune, capacity, gather, listed, thin_listed, masks in DECOMPOSITIONS:
         surface._slices, surface._bits = slices, bits
         surface._box.near_list, surface._box.prune_from, surface._box.gather = near, prune, gather
+        surface._box.mask_from = masks
         surface._exact_queue(capacity)
         surface._cross_list(listed)
         surface._thin_list(thin_listed)

@@ -619,6 +619,7 @@ class WettedSurface:
         box.diag = voxel_diagonal(self.h)
         box.near_list = KB.NEAR_LIST
         box.prune_from = KB.PRUNE_FROM
+        box.mask_from = KB.MASK_FROM
         box.gather = KB.GATHER
         box.skip = 0
         box.bound = wp.vec3d(*lay["bound"])

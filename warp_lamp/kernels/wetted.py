@@ -38,11 +38,15 @@ from warp_lamp.kernels.wetted_base import (
     CERT_LIST,
     CERT_NEAR,
     CERT_TINY,
+    CONDITIONED,
     DEEP,
     DIAG_GAPS,
     DIAG_RESCUED,
     DIAG_THIN,
     DIAG_UNCERTAIN,
+    MASK_SPHERES,
+    REACH_POINTS,
+    REACH_ROWS,
     SKIN_CERTIFIED,
     SKIN_COUNT,
     SKIN_CROSS_FILLED,
@@ -66,6 +70,8 @@ from warp_lamp.kernels.wetted_base import (
     Gathered,
     GatherIds,
     NearList,
+    ReachMasks,
+    ReachPoints,
     WetBox,
     bin_head,
     bin_span,
@@ -258,6 +264,43 @@ def segment_blocked(
 
 
 @wp.func
+def cube_corner_low(z: wp.vec3d, box: WetBox) -> wp.vec3i:
+    """The lowest corner of the voxel-centre cube that holds z, clamped to the box's surroundings [-2, n + 1]."""
+    lo = wp.vec3i(0)
+    for a in range(3):
+        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        lo[a] = wp.int32(f)
+    return lo
+
+
+@wp.func
+def reached_corners(lo: wp.vec3i, reach: wp.array[wp.uint32], box: WetBox, walls: LampWalls) -> wp.int32:
+    """Bit c set: corner c = dx + 2 dy + 4 dz of the cube at ``lo`` is reached (``reached_at``). Read before a
+    candidate's searches: most candidates have no reached corner (97% of the checks on the specimen at rho = r),
+    and then nothing else about them matters. Inside the box and one word wide, four independent word loads."""
+    ix = lo[0]
+    iy = lo[1]
+    iz = lo[2]
+    if ix >= 0 and iy >= 0 and iz >= 0 and ix + 1 < box.n[0] and iy + 1 < box.n[1] and iz + 1 < box.n[2]:
+        if ix % 32 != 31:
+            w = ix / 32
+            s = wp.uint32(ix % 32)
+            r00 = reach[word_at(box, w, iy, iz)]
+            r10 = reach[word_at(box, w, iy + 1, iz)]
+            r01 = reach[word_at(box, w, iy, iz + 1)]
+            r11 = reach[word_at(box, w, iy + 1, iz + 1)]
+            three = wp.uint32(3)
+            bits = ((r00 >> s) & three) | (((r10 >> s) & three) << wp.uint32(2))
+            bits = bits | (((r01 >> s) & three) << wp.uint32(4)) | (((r11 >> s) & three) << wp.uint32(6))
+            return wp.int32(bits)
+    m = int(0)
+    for corner in range(8):
+        if reached_at(ix + (corner & 1), iy + ((corner >> 1) & 1), iz + ((corner >> 2) & 1), reach, box, walls):
+            m = m | (1 << corner)
+    return m
+
+
+@wp.func
 def candidate_check(
     x: wp.vec3d,
     z: wp.vec3d,
@@ -279,7 +322,12 @@ def candidate_check(
     next call's ``hint``: neighbouring candidates are mostly blocked by the same sphere; the answer does not depend
     on it), or -1. Allowed: outside every other inflated ball and ``g >= rho`` for every other wall. A wall never
     blocks the segment to a reached corner: g is affine, the corner keeps rho from every wall and z from every wall
-    but its own, on whose offset plane it lies."""
+    but its own, on whose offset plane it lies. Without a reached corner z is not valid, whatever blocks it: -1
+    before any search."""
+    lo = cube_corner_low(z, box)
+    corners = reached_corners(lo, reach, box, walls)
+    if corners == 0:
+        return -1
     if hint >= 0:
         if inside_inflated(z, hint, positions, radii, box):
             if not defining(hint, i, j, k, positions, radii):
@@ -291,15 +339,11 @@ def candidate_check(
     if blocker >= 0:
         return blocker
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lo = wp.vec3i(0)
-    for a in range(3):
-        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
-        lo[a] = wp.int32(f)
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
         iz = lo[2] + ((corner >> 2) & 1)
-        if reached_at(ix, iy, iz, reach, box, walls):
+        if ((corners >> corner) & 1) != 0:
             y = wp.vec3d(
                 (wp.float64(ix) + wp.float64(0.5)) * box.h[0],
                 (wp.float64(iy) + wp.float64(0.5)) * box.h[1],
@@ -338,6 +382,17 @@ def candidate_check_list(
     z: then the segments walk the bins."""
     if ng < 0:
         return candidate_check(x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    lo = wp.vec3i(0)
+    clamped = int(0)
+    for a in range(3):
+        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
+        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        if f != u:
+            clamped = 1
+        lo[a] = wp.int32(f)
+    corners = reached_corners(lo, reach, box, walls)
+    if corners == 0:
+        return -1
     if hint >= 0:
         if inside_inflated(z, hint, positions, radii, box):
             if not defining(hint, i, j, k, positions, radii):
@@ -350,19 +405,11 @@ def candidate_check_list(
             if not defining(q, i, j, k, positions, radii):
                 return q
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
-    lo = wp.vec3i(0)
-    clamped = int(0)
-    for a in range(3):
-        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
-        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
-        if f != u:
-            clamped = 1
-        lo[a] = wp.int32(f)
     for corner in range(8):
         ix = lo[0] + (corner & 1)
         iy = lo[1] + ((corner >> 1) & 1)
         iz = lo[2] + ((corner >> 2) & 1)
-        if reached_at(ix, iy, iz, reach, box, walls):
+        if ((corners >> corner) & 1) != 0:
             y = wp.vec3d(
                 (wp.float64(ix) + wp.float64(0.5)) * box.h[0],
                 (wp.float64(iy) + wp.float64(0.5)) * box.h[1],
@@ -1036,6 +1083,103 @@ def wall_search(
 
 
 @wp.func
+def reach_masks(
+    x: wp.vec3d,
+    ids: NearList,
+    cnt: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+):
+    """(masks, on): bit p of ``masks[a]`` set when the p-th reached lattice point within rho + diagonal of x lies
+    within r + rho + diagonal of sphere ``ids[a]``'s centre (slack 1e-6). A valid candidate z within rho of x needs
+    a reached corner of its voxel-centre cube, which lies within one diagonal of z, hence of every inflated sphere
+    z is on: so a candidate on spheres whose masks share no bit is not valid, and need not be computed. ``on`` is
+    0 (try every candidate) with more than ``MASK_SPHERES`` spheres or ``REACH_POINTS`` points, too many rows, or
+    x near enough to the box's surroundings that a candidate's cube could be clamped (its corners then need not
+    lie near z)."""
+    masks = ReachMasks()
+    if cnt > MASK_SPHERES:
+        return masks, 0
+    rho = box.rho
+    loose = wp.float64(1.0) + WALL_SLACK
+    lo = wp.vec3i(0)
+    hi = wp.vec3i(0)
+    far = (rho + box.diag) * loose
+    for a in range(3):
+        h = box.h[a]
+        # No clamped cube: every z within rho of x has -2 <= floor(z / h - 1/2) <= n + 1.
+        if x[a] - rho * loose < wp.float64(-1.5) * h * (wp.float64(1.0) - WALL_SLACK):
+            return masks, 0
+        if x[a] + rho * loose >= (wp.float64(box.n[a]) + wp.float64(2.5)) * h * (wp.float64(1.0) - WALL_SLACK):
+            return masks, 0
+        lo[a] = wp.int32(wp.ceil((x[a] - far) / h - wp.float64(0.5)))
+        hi[a] = wp.int32(wp.floor((x[a] + far) / h - wp.float64(0.5)))
+    if (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > REACH_ROWS or hi[0] - lo[0] >= 1024:
+        return masks, 0
+    far2 = far * far
+    pts = ReachPoints()
+    k = int(0)
+    for iz in range(lo[2], hi[2] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            inside = iy >= 0 and iz >= 0 and iy < box.n[1] and iz < box.n[2]
+            ix = lo[0]
+            while ix <= hi[0]:
+                bits = wp.uint32(0)
+                step = int(1)
+                if inside and ix >= 0 and ix < box.n[0]:
+                    # The rest of this word at once.
+                    w = ix / 32
+                    top = wp.min(hi[0], wp.min(32 * w + 31, box.n[0] - 1))
+                    step = top - ix + 1
+                    bits = (reach[word_at(box, w, iy, iz)] >> wp.uint32(ix - 32 * w)) & low_mask(step)
+                elif outside_ok(walls, rho, wp.vec3i(ix, iy, iz), box):
+                    # Beyond the box: reached when it keeps rho from every wall (``reached_at``).
+                    bits = wp.uint32(1)
+                while bits != wp.uint32(0):
+                    b = lowest_bit(bits)
+                    bits = bits & (bits - wp.uint32(1))
+                    y = wp.vec3d(voxel_centre(ix + b, box.h[0]), voxel_centre(iy, box.h[1]), voxel_centre(iz, box.h[2]))
+                    v = y - x
+                    if dot3(v, v) <= far2:
+                        if k == REACH_POINTS:
+                            return masks, 0
+                        pts[k] = ((iz - lo[2]) * 1024 + (iy - lo[1])) * 1024 + (ix + b - lo[0])
+                        k += 1
+                ix += step
+    for a in range(cnt):
+        c = centre_of(ids[a], positions)
+        lim = (wp.float64(radii[ids[a]]) + rho + box.diag) * loose
+        lim2 = lim * lim
+        m = wp.uint64(0)
+        for p in range(k):
+            q = pts[p]
+            y = wp.vec3d(
+                voxel_centre(lo[0] + q % 1024, box.h[0]),
+                voxel_centre(lo[1] + (q / 1024) % 1024, box.h[1]),
+                voxel_centre(lo[2] + q / (1024 * 1024), box.h[2]),
+            )
+            v = y - c
+            if dot3(v, v) <= lim2:
+                m = m | (wp.uint64(1) << wp.uint64(p))
+        masks[a] = m
+    return masks, 1
+
+
+@wp.func
+def conditioned(ci: wp.vec3d, cj: wp.vec3d, ck: wp.vec3d) -> wp.bool:
+    """The centres are far from collinear (``CONDITIONED``): the triple's computed points lie on its spheres."""
+    e1 = cj - ci
+    e2 = ck - ci
+    a11 = dot3(e1, e1)
+    a12 = dot3(e1, e2)
+    a22 = dot3(e2, e2)
+    return a11 * a22 - a12 * a12 >= CONDITIONED * (a11 * a22)
+
+
+@wp.func
 def probe_search(
     x: wp.vec3d,
     lattice: wp.int32,
@@ -1208,8 +1352,16 @@ def probe_search(
     hint = int(-1)
     if (box.skip & 16) != 0:
         return wp.vec4i(-2, -1, -1, 0)
+    masks = ReachMasks()
+    masked = int(0)
+    if cnt >= box.mask_from:
+        masks, masked = reach_masks(x, ids, cnt, positions, radii, reach, box, walls)
+    all_bits = ~wp.uint64(0)
     # Faces: the commonest answer, so first.
     for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
+        if masked != 0:
+            if masks[a] == wp.uint64(0):
+                continue
         i = ids[a]
         c = centre_of(i, positions)
         v = x - c
@@ -1230,7 +1382,17 @@ def probe_search(
         i = ids[a]
         ci = centre_of(i, positions)
         big_i = wp.float64(radii[i]) + rho
+        mask_a = all_bits
+        if masked != 0:
+            mask_a = masks[a]
+        # Every candidate of a pair or triple led by sphere a lies on its inflated sphere (to rounding, however
+        # ill-conditioned the triple: its points are built on a's sphere).
+        if mask_a == wp.uint64(0):
+            continue
         for b in range(a + 1, cnt * wp.where((box.skip & 2) != 0, 0, 1)):
+            mask_ab = mask_a
+            if masked != 0:
+                mask_ab = mask_a & masks[b]
             j = ids[b]
             cj = centre_of(j, positions)
             big_j = wp.float64(radii[j]) + rho
@@ -1239,7 +1401,10 @@ def probe_search(
                 z = wp.vec3d(cp[0], cp[1], cp[2])
                 w = x - z
                 e2 = dot3(w, w)
-                if e2 <= rho2:
+                # A circle point lies on both inflated spheres (to rounding): without a point in both masks, it has
+                # no reached corner. The pair's triples are still enumerated (an ill-conditioned one's points need
+                # not lie on sphere j).
+                if e2 <= rho2 and mask_ab != wp.uint64(0):
                     res = candidate_check_list(
                         x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                     )
@@ -1251,6 +1416,10 @@ def probe_search(
                     for e in range(b + 1, cnt):
                         k = ids[e]
                         ck = centre_of(k, positions)
+                        if masked != 0:
+                            if (mask_ab & masks[e]) == wp.uint64(0):
+                                if conditioned(ci, cj, ck):
+                                    continue
                         big_k = wp.float64(radii[k]) + rho
                         vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
                         if vp[2, 0] != wp.float64(0.0):

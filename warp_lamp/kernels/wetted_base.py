@@ -49,6 +49,21 @@ SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
 GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
+#: Near spheres (after pruning) for which the exact test keeps a mask of the reached lattice points near x that a
+#: candidate on each could have as a corner; with more, or more than 64 such points, every candidate is tried.
+MASK_SPHERES = 32
+#: Near spheres (after pruning) from which the exact test builds the masks (below, every candidate is tried: the
+#: masks' point scan costs more than the few pairs and triples it could skip).
+MASK_FROM = 6
+ReachMasks = wp.types.vector(length=MASK_SPHERES, dtype=wp.uint64)
+#: Reached lattice points a point's exact test lists (one bit each in ``ReachMasks``).
+REACH_POINTS = 64
+ReachPoints = wp.types.vector(length=REACH_POINTS, dtype=wp.int32)
+#: Rows of lattice points (along x) the exact test reads for them at most; past it, every candidate is tried.
+REACH_ROWS = 256
+#: A triple is skipped by the masks only when its centres are this far from collinear (det >= this * a11 * a22):
+#: then its computed points lie on the three inflated spheres to far less than the masks' slack.
+CONDITIONED = wp.constant(wp.float64(1.0e-3))
 #: Spheres the skin's dry certificate lists around a voxel; with more it certifies nothing (the voxel is tested).
 CERT_LIST = 48
 CertIds = wp.types.vector(length=CERT_LIST, dtype=wp.int32)
@@ -108,6 +123,7 @@ class WetBox:
     diag: wp.float64  # voxel diagonal sqrt(hx^2 + hy^2 + hz^2) [m]
     near_list: wp.int32  # spheres the exact test keeps in its local list, <= NEAR_LIST (tests lower it)
     prune_from: wp.int32  # the exact test prunes covered spheres from this many near ones on (tests vary it)
+    mask_from: wp.int32  # the exact test masks candidates by reached points from this many near ones on (MASK_FROM)
     gather: wp.int32  # spheres the exact test gathers for its candidates' searches, <= GATHER (tests lower it)
     skip: wp.int32  # 0; benchmarks only (wrong answers, for timing the exact test's parts): SKIP_* bits
     lamp_mask: wp.int32  # bit 2a: low lamp of axis a on; bit 2a+1: high lamp
