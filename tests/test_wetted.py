@@ -513,6 +513,30 @@ def test_zero_probe_immersed_spheres_cancel(device, rng):
     assert net.sum() < 0.1 * d.hits[inner].sum(), (net.sum(), d.hits[inner].sum())
 
 
+def test_exact_tests_queued_in_voxel_order(device, rng):
+    """The queued exact tests take the uncertain voxels in increasing voxel order (a prefix sum places them), the
+    same voxels as the atomics' order, with the same answer; with the queue too small, its first voxels in order."""
+    centers, radii, grid = exact_scene(rng)
+    surface = wetted_solve(centers, radii, probe_radius=0.25, grid=grid, device=device)
+    seen = {}
+    for capacity, ordered in ((1 << 20, True), (1 << 20, False), (300, True)):
+        surface._exact_queue(capacity)
+        surface._queue_in_order(ordered)
+        surface.update(*device_arrays(centers - grid.origin, radii, device))
+        d = surface.diagnostics()
+        n = min(int(surface.queued.numpy()[0]), capacity)
+        q = surface.queue.numpy()[:n]
+        assert int(surface.queued.numpy()[0]) == d.uncertain > 300
+        if ordered:
+            assert np.all(np.diff(q) > 0)
+        seen[(capacity, ordered)] = (np.sort(q), d.fluid.copy(), d.counts.copy())
+    np.testing.assert_array_equal(seen[(1 << 20, True)][0], seen[(1 << 20, False)][0])
+    np.testing.assert_array_equal(seen[(300, True)][0], seen[(1 << 20, True)][0][:300])
+    for k in ((1 << 20, False), (300, True)):
+        np.testing.assert_array_equal(seen[k][1], seen[(1 << 20, True)][1])
+        np.testing.assert_array_equal(seen[k][2], seen[(1 << 20, True)][2])
+
+
 def test_reach_masks_on_nearly_collinear_triples(device, rng):
     """The exact test's reach masks skip no valid candidate where triples are ill-conditioned: a cubic lattice of
     touching spheres jittered by ~1e-4 of the spacing (rows of nearly collinear centres), masks always and never,

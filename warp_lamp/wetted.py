@@ -323,7 +323,8 @@ def wetted_nbytes(
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels) and the crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
+    :data:`EXACT_QUEUE_PER` voxels, and three words per bitmap word that place its tests in voxel order) and the
+    crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
     :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
     witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
     Particles add :data:`BYTES_PER_PARTICLE` each (on CUDA :data:`CUDA_BYTES_PER_PARTICLE` more, and
@@ -336,9 +337,11 @@ def wetted_nbytes(
 
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
-    # The exact-test queue and its count, the crossing list, and three int32 counters (crossings and thin chords
-    # listed, thin chords left over).
-    queue = 4 * (exact_queue_capacity(lay["n"], device) + 1) + 8 * cross_list_capacity(lay["faces"], device) + 12
+    # The exact-test queue, its count and its order (each word's uncertain bits, their count and its prefix sum),
+    # the crossing list, and three int32 counters (crossings and thin chords listed, thin chords left over).
+    cap = exact_queue_capacity(lay["n"], device)
+    queue = 4 * (cap + 1) + (12 * lay["n_words"] if cap > 0 else 0)
+    queue += 8 * cross_list_capacity(lay["faces"], device) + 12
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
@@ -704,15 +707,16 @@ class WettedSurface:
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
-        self._queue_order(getattr(self, "_order", 0))
+        self._queue_in_order(getattr(self, "_ordered", True))
 
-    def _queue_order(self, order: int) -> None:
-        """Sort the queued tests before they run (0: as queued; 1: by voxel; 2: by the fluid voxels around each,
-        then by voxel): a benchmark's A/B; the answer is the same."""
-        self._order = int(order)
-        cap = self._capacity if self._order else 0
-        self._order_keys = wp.zeros(2 * cap, dtype=wp.int64, device=self.device)
-        self._order_vals = wp.zeros(2 * cap, dtype=wp.int32, device=self.device)
+    def _queue_in_order(self, ordered: bool) -> None:
+        """Queue the exact tests in voxel order (a prefix sum of each word's count; the default) or in the order
+        the first pass's atomics take them (a benchmark's A/B); the answer is the same."""
+        self._ordered = bool(ordered)
+        nw = self._box.n_words if self._capacity > 0 and self._ordered else 0
+        self._uncertain = wp.zeros(nw, dtype=wp.uint32, device=self.device)
+        self._unc_counts = wp.zeros(nw, dtype=wp.int32, device=self.device)
+        self._unc_offsets = wp.zeros(nw, dtype=wp.int32, device=self.device)
 
     def _cross_list(self, capacity: int) -> None:
         """List up to ``capacity`` crossings for a loading thread each (0: none, every crossing loaded where it is
@@ -923,6 +927,15 @@ class WettedSurface:
             )
         if self._capacity > 0:
             self.queued.zero_()
+            if self._ordered:
+                wp.launch(
+                    KS.wet_uncertain_words,
+                    dim=nw,
+                    inputs=[self.band, self.fluid, self.solid, self.kept, self._skin_state, box],
+                    outputs=[self._uncertain, self._unc_counts],
+                    device=d,
+                )
+                wp.utils.array_scan(self._unc_counts, self._unc_offsets, inclusive=False)
         wp.launch(
             K.wet_classify,
             dim=nw * (32 // self._bits),
@@ -942,6 +955,8 @@ class WettedSurface:
                 self._capacity,
                 self.skin,
                 n,
+                self._uncertain,
+                self._unc_offsets,
             ],
             outputs=[
                 self.fluid,
@@ -955,17 +970,6 @@ class WettedSurface:
             ],
             device=d,
         )
-        queue = self.queue
-        if self._capacity > 0 and self._order:
-            wp.launch(
-                KS.wet_queue_keys,
-                dim=self._capacity,
-                inputs=[self.queue, self.queued, self.fluid, box, int(self._order == 2)],
-                outputs=[self._order_keys, self._order_vals],
-                device=d,
-            )
-            wp.utils.radix_sort_pairs(self._order_keys, self._order_vals, self._capacity)
-            queue = self._order_vals
         if self._capacity > 0:
             wp.launch(
                 K.wet_classify_queued,
@@ -980,7 +984,7 @@ class WettedSurface:
                     self.next_in_bin,
                     self.rmax,
                     self.exposed,
-                    queue,
+                    self.queue,
                     self.queued,
                     self.skin,
                     n,

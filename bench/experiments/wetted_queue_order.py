@@ -1,7 +1,7 @@
-"""The queued exact tests in three orders (``WettedSurface._queue_order``: as queued, by voxel, by the fluid voxels
-around each then by voxel): the classify stage (graph replay on CUDA, best thread time on the CPU) and a hash of the
-fluid map, per order, on the bench's scenes at rho = r-bar. The answer is the same in every order; only the time
-differs (a warp's 32 tests take the union of their paths).
+"""The queued exact tests in voxel order (``WettedSurface._queue_in_order(True)``, the default: a prefix sum places
+them) or in the order the first pass's atomics take them: the classify stage (graph replay on CUDA, best thread
+time on the CPU) and a hash of the fluid map, per order, on the bench's scenes at rho = r-bar. The answer is the
+same in either order; only the time differs (a warp's 32 tests take the union of their paths).
 
     PYTHONPATH=$PWD python bench/experiments/wetted_queue_order.py --device cuda:0 --out $OUT/queue_order.json
 """
@@ -18,7 +18,7 @@ from wetted_bench import grid_for, scenes
 from warp_lamp.timing import time_median_events
 from warp_lamp.wetted import WettedSurface
 
-SETTINGS = (0, 1, 2, 0)  # as queued, by voxel, by class; as queued again
+SETTINGS = (1, 0, 1, 0)  # in voxel order, as the atomics take them, twice
 
 
 def main():
@@ -57,7 +57,7 @@ def main():
 
         base = timed("dilate")
         for mf in SETTINGS:
-            surf._queue_order(mf)
+            surf._queue_in_order(bool(mf))
             t = timed("classify") - base
             surf._update(pos, rad, None, stop="thin")
             h = hashlib.sha1(surf.diagnostics().fluid.tobytes()).hexdigest()[:12]

@@ -1954,6 +1954,8 @@ def wet_classify(
     capacity: wp.int32,
     shrink: wp.float64,
     n_particles: wp.int32,
+    uncertain: wp.array[wp.uint32],
+    offsets: wp.array[wp.int32],
     # outputs
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -1968,7 +1970,10 @@ def wet_classify(
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
     ``capacity`` > 0 the first ``capacity`` such voxels go to ``queue`` (their word * 32 + bit, in no set order;
     ``queued[0]``, zeroed before, counts them all) for ``wet_classify_queued``, and the thread tests the rest
-    itself. A thread sets only its own bits of ``fluid``.
+    itself. A thread sets only its own bits of ``fluid``. With ``offsets`` (the exclusive prefix sum of
+    ``wet_uncertain_words``'s counts, and its ``uncertain`` words), a voxel's slot is its rank in voxel order, so
+    that a warp of queued tests takes neighbouring voxels (measured: the atomics' order scrambled them at 1M
+    spheres); else the atomics' order.
 
     The skin (``kept`` not empty): a voxel whose bit is set in ``kept`` has a dry certificate
     (``dry_certificate``) that still holds, unless this update takes a new reference: it stays dry untested (and
@@ -2009,6 +2014,9 @@ def wet_classify(
         # these mostly idle threads it cost more than the tests it saved (measured on an H200).
         if capacity > 0:
             slot = wp.atomic_add(queued, 0, 1)
+            if offsets.shape[0] > 0:
+                # This thread's bits of ``uncertain`` are its own ``unc``: only it changes ``kept`` there.
+                slot = offsets[idx] + wp.bit_count(uncertain[idx] & low_mask(b))
             if slot < capacity:
                 queue[slot] = idx * 32 + b
                 continue

@@ -13,6 +13,7 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_TIGHT,
     ONES,
     RUN_FAR,
+    SKIN_RESET,
     WetBox,
     centre_offset,
     low_mask,
@@ -686,43 +687,25 @@ def wet_dilate_z(
 
 
 @wp.kernel
-def wet_queue_keys(
-    queue: wp.array[wp.int32],
-    queued: wp.array[wp.int32],
+def wet_uncertain_words(
+    band: wp.array[wp.uint32],
     fluid: wp.array[wp.uint32],
+    solid: wp.array[wp.uint32],
+    kept: wp.array[wp.uint32],
+    skin: wp.array[wp.int32],
     box: WetBox,
-    by_class: wp.int32,
     # outputs
-    keys: wp.array[wp.int64],
-    values: wp.array[wp.int32],
+    uncertain: wp.array[wp.uint32],
+    counts: wp.array[wp.int32],
 ):
-    """One thread per queue slot: the sort key of a queued voxel (its index; with ``by_class``, first the fluid
-    voxels of its 3 x 3 x 3 block, most first), so that a warp of queued tests takes voxels alike; the slots past
-    the queue's count sort last."""
-    slot = wp.tid()
-    n = wp.min(queued[0], queue.shape[0])
-    if slot >= n:
-        keys[slot] = wp.int64(9223372036854775807)
-        values[slot] = -1
-        return
-    v = queue[slot]
-    key = wp.int64(v)
-    if by_class != 0:
-        idx = v / 32
-        b = v - idx * 32
-        wjk = word_coords(box, idx)
-        ix = wjk[0] * 32 + b
-        count = int(0)
-        for dz in range(-1, 2):
-            for dy in range(-1, 2):
-                iy = wjk[1] + dy
-                iz = wjk[2] + dz
-                if iy >= 0 and iz >= 0 and iy < box.n[1] and iz < box.n[2]:
-                    for dx in range(-1, 2):
-                        jx = ix + dx
-                        if jx >= 0 and jx < box.n[0]:
-                            word = fluid[word_at(box, jx / 32, iy, iz)]
-                            count += wp.int32((word >> wp.uint32(jx % 32)) & wp.uint32(1))
-        key = (wp.int64(27 - count) << wp.int64(32)) | key
-    keys[slot] = key
-    values[slot] = v
+    """One thread per word: the voxels the exact test will queue (``wet_classify``'s: in the band, dry after the
+    dilation, not solid, less those the skin keeps) and how many, so that a prefix sum of the counts places them in
+    the queue in voxel order (neighbouring voxels in a warp's lanes)."""
+    idx = wp.tid()
+    wjk = word_coords(box, idx)
+    unc = band[idx] & ~fluid[idx] & ~solid[idx] & row_mask(box, wjk[0])
+    if kept.shape[0] > 0:
+        if skin[SKIN_RESET] == 0:
+            unc = unc & ~kept[idx]
+    uncertain[idx] = unc
+    counts[idx] = wp.bit_count(unc)
