@@ -81,13 +81,11 @@ PROFILE = (
 def profile(args):
     """The classify stage (exposure, the exact tests) with parts of the exact test skipped, on the specimen and
     the slot block at rho = r-bar: graph replay on CUDA, thread time on the CPU (best of the repeats)."""
-    import time
-
     import warp as wp
+    from wetted_knobs import stage_time
 
     import warp_lamp as wl
     from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
-    from warp_lamp.timing import time_median_events
     from warp_lamp.wetted import WettedSurface
 
     wp.config.log_level = wp.LOG_WARNING
@@ -108,17 +106,8 @@ def profile(args):
         surf.update(pos, rad)
         gather0 = surf._box.gather
 
-        def timed(stop):
-            if device.is_cuda:
-                with wp.ScopedCapture(device=device) as cap:
-                    surf._update(pos, rad, None, stop=stop)
-                return time_median_events(lambda: wp.capture_launch(cap.graph), device, repeats=args.repeats)
-            best = float("inf")
-            for _ in range(args.repeats):
-                t = time.thread_time()
-                surf._update(pos, rad, None, stop=stop)
-                best = min(best, time.thread_time() - t)
-            return best
+        def timed(stop, surf=surf, pos=pos, rad=rad):
+            return stage_time(surf, pos, rad, stop, device, args.repeats)
 
         base = timed("dilate")
         for label, skip, gather in PROFILE:
