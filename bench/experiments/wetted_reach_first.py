@@ -6,17 +6,15 @@ the candidate's eight corner bits before the blocker search and skips a candidat
 reached (the same answer: a valid candidate needs a reached corner). The reference's candidate sets, without the
 kernel's covered-cap pruning (an upper bound on the kernel's checks).
 
-    PYTHONPATH=$PWD python bench/experiments/wetted_reach_first.py --scene specimen
+    PYTHONPATH=$PWD python bench/experiments/wetted_reach_first.py --scene specimen   # or: small, slot
 """
 
 import argparse
-import time
 
 import numpy as np
+from wetted_study import near_exposed, percentiles, run_reference
 
-import warp_lamp as wl
 from warp_lamp.reference import wetted as R
-from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
 
 ROWS = []  # per test: (wet, checks, no-corner checks, cost before, cost reach-first)
 
@@ -78,20 +76,16 @@ def check(self, z, own, near, hint, reach_first):
     return False, -1, cost
 
 
-def fluid(self, x, lattice):
-    rho = self.rho
-    rho2 = rho * rho
-    near = self._near(x, self.rmax + 2.0 * rho + self.diag)
-    v = x - self.c[near]
-    d2 = R._dot(v, v)
-    g = (self.r[near] + 2.0 * rho) * (1.0 + R.SLACK)
-    keep = self.exposed[near] & (d2 <= g * g)
-    ids = near[keep]
+def count(self, x):
+    rho2 = self.rho * self.rho
+    near, ids = near_exposed(self, x)
     c, big = self.c[ids], self.big[ids]
     cands = []
     for a, i in enumerate(ids):
-        if d2[keep][a] > 0.0:
-            z = c[a] + v[keep][a] * (big[a] / np.sqrt(d2[keep][a]))
+        v = x - c[a]
+        d2 = R._dot(v, v)
+        if d2 > 0.0:
+            z = c[a] + v * (big[a] / np.sqrt(d2))
             if R._dot(x - z, x - z) <= rho2:
                 cands.append((z, (i, -1, -1)))
     pairs = []
@@ -131,28 +125,16 @@ def fluid(self, x, lattice):
         res.append((wet, checks, nocorner, total))
     assert res[0][0] == res[1][0]
     ROWS.append((int(res[0][0]), res[0][1], res[1][2], res[0][3], res[1][3]))
-    return ORIG(self, x, lattice)
-
-
-ORIG = R._Exact.fluid
-R._Exact.fluid = fluid
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--scene", default="specimen")
     ap.add_argument("--rho-diameters", type=float, default=0.5)
-    ap.add_argument("--limit", type=int, default=0, help="stop after this many tests (0: all)")
     a = ap.parse_args()
-    sc = {"specimen": scene_sphere_specimen, "slot": scene_slot_block, "small": lambda: scene_lattice_box(12)}[
-        a.scene
-    ]()
-    rho = a.rho_diameters * 2.0 * float(sc.radii.mean())
-    grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=2.0 * float(sc.radii.mean()) + rho)
-    t = time.perf_counter()
-    R.wetted_reference(sc.centers, sc.radii, grid, probe_radius=rho)
+    _sc, rho, seconds = run_reference(a.scene, a.rho_diameters, count)
     rows = np.array(ROWS, dtype=np.int64).reshape(-1, 5)
-    print(f"{a.scene} rho={rho:.4g}: {len(rows)} tests, {time.perf_counter() - t:.0f} s")
+    print(f"{a.scene} rho={rho:.4g}: {len(rows)} tests, {seconds:.0f} s")
     wet = rows[:, 0] == 1
     for name, sel in (("all", slice(None)), ("wet", wet), ("dry", ~wet)):
         r = rows[sel]
@@ -161,7 +143,7 @@ def main():
             f" spheres read {r[:, 3].sum():10d} -> {r[:, 4].sum():10d}"
         )
     for k, name in ((3, "before"), (4, "reach first")):
-        q = np.percentile(rows[:, k], [50, 90, 99, 99.9, 100])
+        q = percentiles(rows[:, k])
         print(
             f"  spheres read per test, {name:11s}: median {q[0]:7.0f} p90 {q[1]:7.0f} p99 {q[2]:7.0f}"
             f" p99.9 {q[3]:7.0f} max {q[4]:7.0f}"

@@ -7,30 +7,20 @@ update.
 """
 
 import argparse
-import time
 
 import numpy as np
+from wetted_study import near_exposed, percentiles, run_reference
 
-import warp_lamp as wl
 from warp_lamp.reference import wetted as R
-from warp_lamp.scenes import scene_lattice_box, scene_slot_block, scene_sphere_specimen
 
 STATS = {"voxels": 0, "ids": 0, "pairs": 0, "edge_pts": 0, "gated_pairs": 0, "triples": 0, "vertex_pts": 0}
 TRIPLES = set()
 PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
-VALID_TRIPLES = set()
-PER_TEST = []  # (ids, pairs, triples tried, edge points, vertex points) per tested voxel
 
 
-def fluid(self, x, lattice):
-    rho = self.rho
-    rho2 = rho * rho
-    near = self._near(x, self.rmax + 2.0 * rho + self.diag)
-    v = x - self.c[near]
-    d2 = R._dot(v, v)
-    g = (self.r[near] + 2.0 * rho) * (1.0 + R.SLACK)
-    keep = self.exposed[near] & (d2 <= g * g)
-    ids = near[keep]
+def count(self, x):
+    rho2 = self.rho * self.rho
+    _near, ids = near_exposed(self, x)
     c, big = self.c[ids], self.big[ids]
     STATS["voxels"] += 1
     STATS["ids"] += len(ids)
@@ -56,11 +46,6 @@ def fluid(self, x, lattice):
     PER_TEST.append(
         (len(ids), len(pa), int(per.sum()), int((ok & (e2 <= rho2)).sum()), int((okv & w1).sum() + (okv & w2).sum()))
     )
-    return ORIG(self, x, lattice)
-
-
-ORIG = R._Exact.fluid
-R._Exact.fluid = fluid
 
 
 def main():
@@ -68,19 +53,8 @@ def main():
     ap.add_argument("--scene", default="specimen")
     ap.add_argument("--rho-diameters", type=float, default=0.5)
     a = ap.parse_args()
-    sc = {
-        "specimen": scene_sphere_specimen,
-        "slot": scene_slot_block,
-        "small": lambda: scene_lattice_box(12),
-    }[a.scene]()
-    rho = a.rho_diameters * 2.0 * float(sc.radii.mean())
-    grid = wl.LampGrid.enclosing(sc.centers, sc.radii, cells_per_diameter=4, margin=2.0 * float(sc.radii.mean()) + rho)
-    t = time.perf_counter()
-    R.wetted_reference(sc.centers, sc.radii, grid, probe_radius=rho)
-    print(
-        f"{a.scene} rho={rho:.4g} n={sc.n} voxels={int(np.prod(grid.counts[2]) * grid.counts[0, 1])}"
-        f" {time.perf_counter() - t:.1f} s"
-    )
+    sc, rho, seconds = run_reference(a.scene, a.rho_diameters, count)
+    print(f"{a.scene} rho={rho:.4g} n={sc.n} {seconds:.1f} s")
     v = max(STATS["voxels"], 1)
     for k, val in STATS.items():
         print(f"  {k:12s} {val:>12,}  per tested voxel {val / v:8.2f}")
@@ -88,7 +62,7 @@ def main():
     # The GPU runs every test at once, so its time follows the slowest tests: the tail of the work per test.
     a = np.array(PER_TEST, dtype=np.int64).reshape(-1, 5)
     for k, name in enumerate(("spheres", "pairs", "triples tried", "edge points", "vertex points")):
-        q = np.percentile(a[:, k], [50, 90, 99, 99.9, 100])
+        q = percentiles(a[:, k])
         print(
             f"  per test {name:14s} median {q[0]:6.0f}  p90 {q[1]:6.0f}  p99 {q[2]:6.0f}  p99.9 {q[3]:6.0f}"
             f"  max {q[4]:6.0f}"
