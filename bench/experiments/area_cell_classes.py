@@ -17,7 +17,7 @@ orig = A._resolve
 
 def hooked(seeds, full, cells, q, r, a, cu, cv, hu, hv, nu, side, resolver, subpoints, unit):
     ox, oy, oz, rr, ok = A._geometry(seeds, cells, q, r, a, cu, cv, hu, hv, nu, side)
-    order, undecided = A._surface_order(A._pair_relations(ox, oy, oz, rr, ok, hu, hv), ok)
+    _order, undecided = A._surface_order(A._pair_relations(ox, oy, oz, rr, ok, hu, hv), ok)
     count = ok.sum(axis=1)
     STATS.append(np.stack([count, full, undecided.astype(int)], axis=1))
     return orig(seeds, full, cells, q, r, a, cu, cv, hu, hv, nu, side, resolver, subpoints, unit)
