@@ -668,6 +668,7 @@ class WettedSurface:
         # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
         # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
         # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
+        self._ordered = True
         self._exact_queue(exact_queue_capacity(lay["n"], d))
         # The crossing list (CUDA): the crossings found by the face-word threads, loaded by a thread each.
         self._cross_list(cross_list_capacity(self._faces, d))
@@ -707,7 +708,7 @@ class WettedSurface:
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
-        self._queue_in_order(getattr(self, "_ordered", True))
+        self._queue_in_order(self._ordered)
 
     def _queue_in_order(self, ordered: bool) -> None:
         """Queue the exact tests in voxel order (a prefix sum of each word's count; the default) or in the order

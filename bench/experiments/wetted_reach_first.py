@@ -9,10 +9,8 @@ kernel's covered-cap pruning (an upper bound on the kernel's checks).
     PYTHONPATH=$PWD python bench/experiments/wetted_reach_first.py --scene specimen   # or: small, slot
 """
 
-import argparse
-
 import numpy as np
-from wetted_study import near_exposed, percentiles, run_reference
+from wetted_study import near_exposed, percentiles, study_main
 
 from warp_lamp.reference import wetted as R
 
@@ -128,11 +126,7 @@ def count(self, x):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--scene", default="specimen")
-    ap.add_argument("--rho-diameters", type=float, default=0.5)
-    a = ap.parse_args()
-    _sc, rho, seconds = run_reference(a.scene, a.rho_diameters, count)
+    a, _sc, rho, seconds = study_main(count)
     rows = np.array(ROWS, dtype=np.int64).reshape(-1, 5)
     print(f"{a.scene} rho={rho:.4g}: {len(rows)} tests, {seconds:.0f} s")
     wet = rows[:, 0] == 1

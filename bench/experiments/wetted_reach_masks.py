@@ -6,10 +6,8 @@ to both spheres' masks, a triple to all three); the heaviest tests last.
     PYTHONPATH=$PWD python bench/experiments/wetted_reach_masks.py --scene specimen   # or: small, slot
 """
 
-import argparse
-
 import numpy as np
-from wetted_study import near_exposed, run_reference
+from wetted_study import near_exposed, study_main
 
 from warp_lamp.reference import wetted as R
 
@@ -60,11 +58,7 @@ def count(exact, x):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--scene", default="specimen")
-    ap.add_argument("--rho-diameters", type=float, default=0.5)
-    args = ap.parse_args()
-    _sc, rho, seconds = run_reference(args.scene, args.rho_diameters, count)
+    args, _sc, rho, seconds = study_main(count)
     a = np.array(ROWS).reshape(-1, 7)
     print(f"{args.scene} rho={rho:.4g}: {len(a)} tests, {seconds:.0f} s")
     print("  reached points near a test: median / p90 / max", np.percentile(a[:, 0], [50, 90, 100]))

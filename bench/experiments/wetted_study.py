@@ -2,6 +2,7 @@
 ``wetted_reach_first.py``, ``wetted_reach_masks.py``): the reference run on a named scene, with a hook that sees
 every tested voxel, and the candidates' spheres of a test as the reference chooses them."""
 
+import argparse
 import time
 
 import numpy as np
@@ -48,3 +49,13 @@ def run_reference(scene: str, rho_diameters: float, hook) -> tuple:
 def percentiles(values) -> np.ndarray:
     """Median, p90, p99, p99.9 and max."""
     return np.percentile(np.asarray(values), [50, 90, 99, 99.9, 100])
+
+
+def study_main(hook) -> tuple:
+    """A study's command line (``--scene``, ``--rho-diameters``), then :func:`run_reference` with ``hook``;
+    (the arguments, the scene, rho, seconds)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", default="specimen", choices=sorted(SCENES))
+    ap.add_argument("--rho-diameters", type=float, default=0.5)
+    args = ap.parse_args()
+    return (args, *run_reference(args.scene, args.rho_diameters, hook))

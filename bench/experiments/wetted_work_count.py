@@ -6,10 +6,8 @@ update.
     PYTHONPATH=$PWD python bench/experiments/wetted_work_count.py --scene specimen --rho-diameters 0.5
 """
 
-import argparse
-
 import numpy as np
-from wetted_study import near_exposed, percentiles, run_reference
+from wetted_study import near_exposed, percentiles, study_main
 
 from warp_lamp.reference import wetted as R
 
@@ -49,11 +47,7 @@ def count(self, x):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--scene", default="specimen")
-    ap.add_argument("--rho-diameters", type=float, default=0.5)
-    a = ap.parse_args()
-    sc, rho, seconds = run_reference(a.scene, a.rho_diameters, count)
+    a, sc, rho, seconds = study_main(count)
     print(f"{a.scene} rho={rho:.4g} n={sc.n} {seconds:.1f} s")
     v = max(STATS["voxels"], 1)
     for k, val in STATS.items():
