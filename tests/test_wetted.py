@@ -537,45 +537,6 @@ def test_exact_tests_queued_in_voxel_order(device, rng):
         np.testing.assert_array_equal(seen[k][2], seen[(1 << 20, True)][2])
 
 
-def test_exact_pairs_deferred_to_items(device, rng):
-    """Queued exact tests that hand their pairs and triples to a thread per (test, leading sphere) give the
-    reference's answer with room for all of them, for none, and with the records, masks or items overflowing (the
-    rest run their pairs themselves); on random scenes and a jittered lattice of touching spheres, masks always and
-    never."""
-    centers, radii, grid = exact_scene(rng)
-    idx = np.stack(np.meshgrid(*[np.arange(5)] * 3, indexing="ij"), axis=-1).reshape(-1, 3).astype(np.float64)
-    lattice = 1.0 + idx + np.round(rng.uniform(-1.0, 1.0, idx.shape) * 16.0) / 2.0**17
-    cases = (
-        (centers, radii, grid, 0.25),
-        (lattice, np.full(len(lattice), 0.5), wl.LampGrid([-0.5] * 3, [6.5] * 3, 0.25), 0.45),
-    )
-    for c, r, g, rho in cases:
-        ref = wetted_reference(c, r, g, probe_radius=rho)
-        surface = wetted_solve(c, r, probe_radius=rho, grid=g, keep_owners=True, device=device)
-        surface._exact_queue(1 << 20)
-        deferred = {}
-        for room in (
-            (1 << 22, 1 << 20, 1 << 20),
-            (0, 0, 0),
-            (400, 1 << 20, 1 << 20),
-            (1 << 22, 7, 1 << 20),
-            (1 << 22, 1 << 20, 5),
-        ):
-            for masks in (0, 1 << 20):
-                surface._box.mask_from = masks
-                surface._exact_split(room)
-                surface.update(*device_arrays(c - g.origin, r, device))
-                d = assert_matches(surface, ref)
-                deferred[room, masks] = d.pairs_deferred
-        full = (1 << 22, 1 << 20, 1 << 20)
-        # Most tests that reach their pairs defer them given room; none without; fewer past a capacity.
-        assert deferred[full, 0] > 100 and deferred[full, 1 << 20] > 100
-        assert deferred[(0, 0, 0), 0] == 0
-        for room in ((400, 1 << 20, 1 << 20), (1 << 22, 7, 1 << 20), (1 << 22, 1 << 20, 5)):
-            assert deferred[room, 0] < deferred[full, 0]
-        assert deferred[(1 << 22, 7, 1 << 20), 1 << 20] == deferred[full, 1 << 20]  # unmasked: no mask taken
-
-
 def test_reach_masks_on_nearly_collinear_triples(device, rng):
     """The exact test's reach masks skip no valid candidate where triples are ill-conditioned: a cubic lattice of
     touching spheres jittered by ~1e-4 of the spacing (rows of nearly collinear centres), masks always and never,
@@ -761,7 +722,6 @@ def test_memory_is_known_before_allocation(device):
     for rho, keep, skin in ((0.0, False, None), (0.35, True, None), (0.35, False, "auto")):
         surface = WettedSurface(grid, probe_radius=rho, keep_owners=keep, device=device, skin=skin)
         arrays = [v for v in vars(surface).values() if isinstance(v, wp.array)]
-        arrays += [surface.split.pool, surface.split.masks, surface.split.items, surface.split.used]
         per_particle = {id(surface.counts), id(surface.hits), id(surface.next_in_bin), id(surface._no_active)}
         per_particle |= {id(surface.thin_list), id(surface.thin_from)}  # sized with the particles
         allocated = sum(a.capacity for a in arrays if id(a) not in per_particle)

@@ -105,15 +105,6 @@ SKIN_BYTES_PER_PARTICLE = 20
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
 EXACT_QUEUE_MIN = 4096
-#: Per slot of the exact test's queue (CUDA), room for the deferred tests' pairs and triples (:func:`split_capacity`):
-#: int32s of records (a test takes 6 + its near spheres + its gathered spheres: 28 on the specimen at rho = r-bar,
-#: 5.6 per slot; the slot block 7.0 per slot) ...
-SPLIT_POOL_PER = 12
-#: ... uint64 reach masks (one per near sphere of a masked test: 0.1 per slot on the specimen) ...
-SPLIT_MASKS_PER = 1
-#: ... and items (a test lists one per leading sphere with pairs: 0.5 per slot on the specimen, 0.65 on the slot
-#: block). Past any of them a test runs its pairs itself.
-SPLIT_ITEMS_PER = 1
 #: Threads per block of the launches whose work sits in few threads (the queued exact tests and the listed crossings,
 #: packed at the front of their launch; the thin chords, a thread per sphere and axis): at 146-255 registers a
 #: thread, one block of 256 fills an SM's registers, so on the specimen 15,915 queued tests ran on 63 of the H200's
@@ -332,8 +323,7 @@ def wetted_nbytes(
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels, and three words per bitmap word that place its tests in voxel order; without a
-    skin, :func:`split_capacity`'s room to defer its tests' pairs) and the
+    :data:`EXACT_QUEUE_PER` voxels, and three words per bitmap word that place its tests in voxel order) and the
     crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
     :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
     witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
@@ -351,9 +341,6 @@ def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = Fal
     # the crossing list, and three int32 counters (crossings and thin chords listed, thin chords left over).
     cap = exact_queue_capacity(lay["n"], device)
     queue = 4 * (cap + 1) + (12 * lay["n_words"] if cap > 0 else 0)
-    # Without the skin, the deferred tests' records, masks and items, and four counters.
-    pool, masks, items = split_capacity(cap if not skin else 0)
-    queue += 4 * pool + 8 * masks + 8 * items + 4 * KB.N_SPLIT
     queue += 8 * cross_list_capacity(lay["faces"], device) + 12
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
@@ -406,14 +393,6 @@ def exact_queue_capacity(shape, device) -> int:
     rule."""
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
     return _packed_capacity(n_vox, EXACT_QUEUE_PER, EXACT_QUEUE_MIN, device)
-
-
-def split_capacity(queue_capacity: int) -> tuple[int, int, int]:
-    """Room the exact test's queue of ``queue_capacity`` slots gets to defer its tests' pairs and triples, one
-    thread per (test, leading sphere): record int32s, mask uint64s and items (:data:`SPLIT_POOL_PER`,
-    :data:`SPLIT_MASKS_PER`, :data:`SPLIT_ITEMS_PER` per slot; 64 bytes a slot in all at the defaults)."""
-    cap = int(queue_capacity)
-    return SPLIT_POOL_PER * cap, SPLIT_MASKS_PER * cap, SPLIT_ITEMS_PER * cap
 
 
 def cross_list_capacity(faces, device) -> int:
@@ -472,8 +451,6 @@ class WettedDiagnostics:
         crossings_listed: Crossings loaded through the crossing list (CUDA), one thread each; the rest were loaded
             where they were found (all of them on the CPU, or past the list's capacity).
         thin_listed: Thin chords with fluid on both sides walked through the thin list (CUDA), one thread each.
-        pairs_deferred: Exact tests whose pairs and triples ran one thread per leading sphere (CUDA, without walls
-            or the skin); the others ran them in their own thread.
         owners: With ``keep_owners``, per lamp grid a, the sphere each crossing went to, shape (n_u, n_v, n_a + 1)
             indexed by the ray's cell and the face (between voxels face-1 and face along a): -2 where no crossing
             was loaded, -1 where none was found, -3 where a wall took it; else None.
@@ -515,7 +492,6 @@ class WettedDiagnostics:
     skin_cross_kept: int = 0
     crossings_listed: int = 0
     thin_listed: int = 0
-    pairs_deferred: int = 0
     owners: dict | None = None
     wall_owners: dict | None = None
     thin_faces: dict | None = None
@@ -733,21 +709,6 @@ class WettedSurface:
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
         self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
         self._queue_in_order(self._ordered)
-        # A deferred test keeps no witness, so the skin's tests run their pairs themselves.
-        n_vox = int(np.prod(self.shape))
-        self._exact_split(split_capacity(0 if self.skin else min(self._capacity, n_vox)))
-
-    def _exact_split(self, room: tuple[int, int, int]) -> None:
-        """Room for queued tests to defer their pairs and triples to a thread per (test, leading sphere): record
-        int32s, mask uint64s, items (zeros: none; the tests and the benchmark's A/B set it); the answer is the
-        same."""
-        d = self.device
-        pool, masks, items = (int(r) for r in room)
-        self.split = KB.WetSplit()
-        self.split.pool = wp.zeros(pool, dtype=wp.int32, device=d)
-        self.split.masks = wp.zeros(masks, dtype=wp.uint64, device=d)
-        self.split.items = wp.zeros(items, dtype=wp.vec2i, device=d)
-        self.split.used = wp.zeros(KB.N_SPLIT, dtype=wp.int32, device=d)
 
     def _queue_in_order(self, ordered: bool) -> None:
         """Queue the exact tests in voxel order (a prefix sum of each word's count; the default) or in the order
@@ -967,7 +928,6 @@ class WettedSurface:
             )
         if self._capacity > 0:
             self.queued.zero_()
-            self.split.used.zero_()
             if self._ordered:
                 wp.launch(
                     KS.wet_uncertain_words,
@@ -1030,19 +990,10 @@ class WettedSurface:
                     self.skin,
                     n,
                 ],
-                outputs=[self.split, self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
+                outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
                 device=d,
                 block_dim=SPARSE_BLOCK_DIM,
             )
-            if self.split.items.shape[0] > 0:
-                wp.launch(
-                    K.wet_classify_pairs,
-                    dim=self.split.items.shape[0],
-                    inputs=[positions, radii, box, walls, self.reach, self.heads, self.next_in_bin, self.rmax],
-                    outputs=[self.split, self.fluid, self.diag],
-                    device=d,
-                    block_dim=SPARSE_BLOCK_DIM,
-                )
         if self.skin:
             wp.launch(
                 K.wet_skin_rebase,
@@ -1209,8 +1160,6 @@ class WettedSurface:
             out.crossings_listed = min(int(self.cross_listed.numpy()[0]), self._list_capacity)
         if self.thin_list.shape[0] > 0:
             out.thin_listed = min(int(self.thin_listed.numpy()[0]), self.thin_list.shape[0])
-        if self._capacity > 0:
-            out.pairs_deferred = int(self.split.used.numpy()[KB.SPLIT_TESTS])
         if self.skin:
             st = self._skin_state.numpy()
             out.skin_kept = int(st[KB.SKIN_KEPT])

@@ -4,8 +4,6 @@ answer is the same at every setting; only the time differs.
 
 - ``--knob mask_from``: the reach masks from this many near spheres on (``WetBox.mask_from``; 1 << 20: never).
 - ``--knob order``: the queued tests in voxel order (1, the default) or as the first pass's atomics take them (0).
-- ``--knob split``: the queued tests' pairs and triples deferred to a thread per (test, leading sphere) (1, the
-  default on CUDA) or run by the test's own thread (0).
 
     PYTHONPATH=$PWD python bench/experiments/wetted_knobs.py --knob order --device cuda:0 --out $OUT/order.json
 """
@@ -20,13 +18,12 @@ import warp as wp
 from wetted_bench import grid_for, scenes
 
 from warp_lamp.timing import time_median_events
-from warp_lamp.wetted import WettedSurface, split_capacity
+from warp_lamp.wetted import WettedSurface
 
 #: Settings per knob, and how a surface takes one.
 KNOBS = {
     "mask_from": ((1 << 20, 0, 6, 9, 12, 15), lambda surf, v: setattr(surf._box, "mask_from", v)),
     "order": ((1, 0, 1, 0), lambda surf, v: surf._queue_in_order(bool(v))),
-    "split": ((1, 0, 1, 0), lambda surf, v: surf._exact_split(split_capacity(surf._capacity if v else 0))),
 }
 
 
@@ -73,16 +70,9 @@ def main():
             apply(surf, v)
             t = stage_time(surf, pos, rad, "classify", device, args.repeats) - base
             surf._update(pos, rad, None, stop="thin")
-            d = surf.diagnostics()
-            h = hashlib.sha1(d.fluid.tobytes()).hexdigest()[:12]
-            row = {"scene": name, "particles": sc.n, args.knob: v, "classify_s": t, "fluid_hash": h}
-            row.update(uncertain=d.uncertain, rescued=d.rescued, pairs_deferred=d.pairs_deferred)
-            rows.append(row)
-            print(
-                f"{name:10s} {args.knob} {v:>8d}: classify {t * 1e3:8.3f} ms  fluid {h}  tests {d.uncertain}"
-                f"  deferred {d.pairs_deferred}",
-                flush=True,
-            )
+            h = hashlib.sha1(surf.diagnostics().fluid.tobytes()).hexdigest()[:12]
+            rows.append({"scene": name, "particles": sc.n, args.knob: v, "classify_s": t, "fluid_hash": h})
+            print(f"{name:10s} {args.knob} {v:>8d}: classify {t * 1e3:8.3f} ms  fluid {h}", flush=True)
         del surf
     with open(args.out, "w") as f:
         json.dump({"device": str(device), "name": getattr(device, "name", ""), "rows": rows}, f, indent=1)

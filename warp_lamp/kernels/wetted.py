@@ -29,8 +29,6 @@ exact test has the offset planes among its candidates (``wall_search``), and a c
 axis than to any sphere goes to the wall (``load_crossing``, ``wall_counts``).
 """
 
-from typing import Any
-
 import warp as wp
 
 from warp_lamp.kernels.walls import LampWalls, plane_value
@@ -49,13 +47,6 @@ from warp_lamp.kernels.wetted_base import (
     MASK_SPHERES,
     REACH_POINTS,
     REACH_ROWS,
-    REC_CNT,
-    REC_HEAD,
-    REC_HINT,
-    REC_MASKS,
-    REC_NG,
-    REC_VOXEL,
-    REC_WET,
     SKIN_CERTIFIED,
     SKIN_COUNT,
     SKIN_CROSS_FILLED,
@@ -69,10 +60,6 @@ from warp_lamp.kernels.wetted_base import (
     SKIN_WIPE,
     SKIN_WITNESSED,
     SLACK,
-    SPLIT_ITEMS,
-    SPLIT_MASKS,
-    SPLIT_POOL,
-    SPLIT_TESTS,
     WALL_SLACK,
     WALL_TAG,
     BinSpan,
@@ -81,11 +68,11 @@ from warp_lamp.kernels.wetted_base import (
     DeepDepths,
     DeepIds,
     Gathered,
+    GatherIds,
     NearList,
     ReachMasks,
     ReachPoints,
     WetBox,
-    WetSplit,
     bin_head,
     bin_span,
     centre_offset,
@@ -384,13 +371,11 @@ def candidate_check_list(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    gathered: Any,
-    gbase: wp.int32,
+    gathered: GatherIds,
     ng: wp.int32,
 ) -> wp.int32:
     """``candidate_check`` for z within rho of x, its blocker and segment searches over the spheres ``gather_near``
-    collected around x (``gathered[gbase:gbase + ng]``, a test's local list or its record in a ``WetSplit``'s pool;
-    ng -1: too many, so the bins are walked). The same answer and the same blocker:
+    collected around x (``ng`` of them; -1: too many, so the bins are walked). The same answer and the same blocker:
     the list holds, in the bins' order, every sphere of the bins that the walks visit that can hold z (centre within
     r + 2 rho of x) or cut a segment from z to a corner of its voxel-centre cube (within r + 2 rho + diagonal) and
     only the spheres beyond, which can do neither. A corner clamped to the box's surroundings may lie farther from
@@ -415,7 +400,7 @@ def candidate_check_list(
     if not walls_allow(z, i, j, k, walls, box.rho):
         return -1
     for t in range(ng):
-        q = gathered[gbase + t]
+        q = gathered[t]
         if inside_inflated(z, q, positions, radii, box):
             if not defining(q, i, j, k, positions, radii):
                 return q
@@ -441,7 +426,7 @@ def candidate_check_list(
                     half = wp.sqrt(dd) * wp.float64(0.5)
                     cut = int(0)
                     for t in range(ng):
-                        q = gathered[gbase + t]
+                        q = gathered[t]
                         if segment_cut(y, d, dd, mid, half, q, positions, radii, box):
                             if not defining(q, i, j, k, positions, radii):
                                 cut = 1
@@ -1195,180 +1180,6 @@ def conditioned(ci: wp.vec3d, cj: wp.vec3d, ck: wp.vec3d) -> wp.bool:
 
 
 @wp.func
-def probe_pairs_of(
-    a: wp.int32,
-    x: wp.vec3d,
-    ids: Any,
-    ibase: wp.int32,
-    cnt: wp.int32,
-    masks: Any,
-    mbase: wp.int32,
-    masked: wp.int32,
-    hint: wp.int32,
-    gathered: Any,
-    gbase: wp.int32,
-    ng: wp.int32,
-    rmax: wp.float64,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    reach: wp.array[wp.uint32],
-    box: WetBox,
-    walls: LampWalls,
-):
-    """``probe_search``'s edge and vertex candidates led by near sphere a: the points nearest x on the circles of
-    (a, b > a), and the triple points of (a, b, e > b) on every circle that passes within rho. ``ids``, ``masks``
-    and ``gathered`` are the test's lists from ``ibase``, ``mbase`` and ``gbase`` (its local vectors, or its record
-    in a ``WetSplit``). Returns the witness of the first valid candidate ((-2, ...) for none) and the hint."""
-    rho = box.rho
-    rho2 = rho * rho
-    all_bits = ~wp.uint64(0)
-    i = ids[ibase + a]
-    ci = centre_of(i, positions)
-    big_i = wp.float64(radii[i]) + rho
-    mask_a = all_bits
-    if masked != 0:
-        mask_a = masks[mbase + a]
-    # Every candidate of a pair or triple led by sphere a lies on its inflated sphere (to rounding, however
-    # ill-conditioned the triple: its points are built on a's sphere).
-    if mask_a == wp.uint64(0):
-        return wp.vec4i(-2, -1, -1, 0), hint
-    for b in range(a + 1, cnt * wp.where((box.skip & 2) != 0, 0, 1)):
-        mask_ab = mask_a
-        if masked != 0:
-            mask_ab = mask_a & masks[mbase + b]
-        j = ids[ibase + b]
-        cj = centre_of(j, positions)
-        big_j = wp.float64(radii[j]) + rho
-        cp = circle_point(x, ci, big_i, cj, big_j)
-        if cp[3] != wp.float64(0.0):
-            z = wp.vec3d(cp[0], cp[1], cp[2])
-            w = x - z
-            e2 = dot3(w, w)
-            # A circle point lies on both inflated spheres (to rounding): without a point in both masks, it has
-            # no reached corner. The pair's triples are still enumerated (an ill-conditioned one's points need
-            # not lie on sphere j).
-            if e2 <= rho2 and mask_ab != wp.uint64(0):
-                res = candidate_check_list(
-                    x,
-                    z,
-                    i,
-                    j,
-                    -1,
-                    hint,
-                    rmax,
-                    positions,
-                    radii,
-                    heads,
-                    next_in_bin,
-                    reach,
-                    box,
-                    walls,
-                    gathered,
-                    gbase,
-                    ng,
-                )
-                if res == CANDIDATE_OK:
-                    return wp.vec4i(i, j, -1, 0), hint
-                if res >= 0:
-                    hint = res
-            if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
-                for e in range(b + 1, cnt):
-                    k = ids[ibase + e]
-                    ck = centre_of(k, positions)
-                    if masked != 0:
-                        if (mask_ab & masks[mbase + e]) == wp.uint64(0):
-                            if conditioned(ci, cj, ck):
-                                continue
-                    big_k = wp.float64(radii[k]) + rho
-                    vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
-                    if vp[2, 0] != wp.float64(0.0):
-                        for t in range(2):
-                            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
-                            w = x - z
-                            if dot3(w, w) <= rho2:
-                                res = candidate_check_list(
-                                    x,
-                                    z,
-                                    i,
-                                    j,
-                                    k,
-                                    hint,
-                                    rmax,
-                                    positions,
-                                    radii,
-                                    heads,
-                                    next_in_bin,
-                                    reach,
-                                    box,
-                                    walls,
-                                    gathered,
-                                    gbase,
-                                    ng,
-                                )
-                                if res == CANDIDATE_OK:
-                                    return wp.vec4i(i, j, k, t), hint
-                                if res >= 0:
-                                    hint = res
-    return wp.vec4i(-2, -1, -1, 0), hint
-
-
-@wp.func
-def split_defer(
-    v: wp.int32,
-    cnt: wp.int32,
-    ids: NearList,
-    masks: ReachMasks,
-    masked: wp.int32,
-    hint: wp.int32,
-    g: Gathered,
-    split: WetSplit,
-) -> wp.bool:
-    """Hand the pairs and triples of the exact test of voxel v to ``wet_classify_pairs``: its record (``REC_*``)
-    from ``split.pool`` and ``split.masks`` and an item per leading sphere that has any. False when it has none, or
-    the record or its items do not fit (the test runs them itself; its item slots that fit are marked empty)."""
-    n_items = int(0)
-    for a in range(cnt - 1):
-        if masked == 0 or masks[a] != wp.uint64(0):
-            n_items += 1
-    if n_items == 0:
-        return False
-    size = REC_HEAD + cnt + wp.max(g.n, 0)
-    base = wp.atomic_add(split.used, SPLIT_POOL, size)
-    mb = int(-1)
-    fits = base + size <= split.pool.shape[0]
-    if masked != 0:
-        mb = wp.atomic_add(split.used, SPLIT_MASKS, cnt)
-        fits = fits and mb + cnt <= split.masks.shape[0]
-    first = wp.atomic_add(split.used, SPLIT_ITEMS, n_items)
-    fits = fits and first + n_items <= split.items.shape[0]
-    if not fits:
-        for t in range(wp.min(n_items, split.items.shape[0] - first)):
-            split.items[first + t] = wp.vec2i(-1, 0)
-        return False
-    split.pool[base + REC_VOXEL] = v
-    split.pool[base + REC_CNT] = cnt
-    split.pool[base + REC_NG] = g.n
-    split.pool[base + REC_WET] = 0
-    split.pool[base + REC_HINT] = hint
-    split.pool[base + REC_MASKS] = mb
-    for a in range(cnt):
-        split.pool[base + REC_HEAD + a] = ids[a]
-        if masked != 0:
-            split.masks[mb + a] = masks[a]
-    for t in range(g.n):
-        split.pool[base + REC_HEAD + cnt + t] = g.ids[t]
-    t = int(0)
-    for a in range(cnt - 1):
-        if masked == 0 or masks[a] != wp.uint64(0):
-            split.items[first + t] = wp.vec2i(base, a)
-            t += 1
-    wp.atomic_add(split.used, SPLIT_TESTS, 1)
-    return True
-
-
-@wp.func
 def probe_search(
     x: wp.vec3d,
     lattice: wp.int32,
@@ -1381,13 +1192,10 @@ def probe_search(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    split: WetSplit,
-    voxel: wp.int32,
 ) -> wp.vec4i:
     """``probe_reaches`` with its witness: (i, j, k, t) of the valid candidate it found on spheres alone (a radial
     projection on i: j = k = -1; a circle point of i < j: k = -1; point t of the triple i < j < k), (-1, ...) for
-    one found otherwise (x itself, a wall's, or by the bin-walk search), (-2, ...) for none, (-3, ...) when its
-    pairs and triples were handed to ``wet_classify_pairs`` (only given room in ``split``; ``voxel`` is x's).
+    one found otherwise (x itself, a wall's, or by the bin-walk search), (-2, ...) for none.
 
     Whether x, outside every sphere, is fluid by exact distances: some candidate probe centre within rho of it is
     allowed and reachable (``candidate_check``). Candidates: x itself (only for a point off the lattice,
@@ -1420,7 +1228,7 @@ def probe_search(
                         q = next_in_bin[q]
         if (
             candidate_check_list(
-                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, 0, g.n
+                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
             )
             == CANDIDATE_OK
         ):
@@ -1548,6 +1356,7 @@ def probe_search(
     masked = int(0)
     if cnt >= box.mask_from:
         masks, masked = reach_masks(x, ids, cnt, positions, radii, reach, box, walls)
+    all_bits = ~wp.uint64(0)
     # Faces: the commonest answer, so first.
     for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
         if masked != 0:
@@ -1562,42 +1371,84 @@ def probe_search(
             w = x - z
             if dot3(w, w) <= rho2:
                 res = candidate_check_list(
-                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, 0, g.n
+                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
                 )
                 if res == CANDIDATE_OK:
                     return wp.vec4i(i, -1, -1, 0)
                 if res >= 0:
                     hint = res
-    # Edges, and the vertices on every circle that passes within rho of x, led by each near sphere in turn; or,
-    # given room in ``split``, by a thread per leading sphere (``wet_classify_pairs``).
-    if split.items.shape[0] > 0 and walls.n == 0:
-        if split_defer(voxel, cnt, ids, masks, masked, hint, g, split):
-            return wp.vec4i(-3, -1, -1, 0)
+    # Edges, and the vertices on every circle that passes within rho of x.
     for a in range(cnt):
-        found, hint = probe_pairs_of(
-            a,
-            x,
-            ids,
-            0,
-            cnt,
-            masks,
-            0,
-            masked,
-            hint,
-            g.ids,
-            0,
-            g.n,
-            rmax,
-            positions,
-            radii,
-            heads,
-            next_in_bin,
-            reach,
-            box,
-            walls,
-        )
-        if found[0] != -2:
-            return found
+        i = ids[a]
+        ci = centre_of(i, positions)
+        big_i = wp.float64(radii[i]) + rho
+        mask_a = all_bits
+        if masked != 0:
+            mask_a = masks[a]
+        # Every candidate of a pair or triple led by sphere a lies on its inflated sphere (to rounding, however
+        # ill-conditioned the triple: its points are built on a's sphere).
+        if mask_a == wp.uint64(0):
+            continue
+        for b in range(a + 1, cnt * wp.where((box.skip & 2) != 0, 0, 1)):
+            mask_ab = mask_a
+            if masked != 0:
+                mask_ab = mask_a & masks[b]
+            j = ids[b]
+            cj = centre_of(j, positions)
+            big_j = wp.float64(radii[j]) + rho
+            cp = circle_point(x, ci, big_i, cj, big_j)
+            if cp[3] != wp.float64(0.0):
+                z = wp.vec3d(cp[0], cp[1], cp[2])
+                w = x - z
+                e2 = dot3(w, w)
+                # A circle point lies on both inflated spheres (to rounding): without a point in both masks, it has
+                # no reached corner. The pair's triples are still enumerated (an ill-conditioned one's points need
+                # not lie on sphere j).
+                if e2 <= rho2 and mask_ab != wp.uint64(0):
+                    res = candidate_check_list(
+                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                    )
+                    if res == CANDIDATE_OK:
+                        return wp.vec4i(i, j, -1, 0)
+                    if res >= 0:
+                        hint = res
+                if e2 <= rho2 * (wp.float64(1.0) + SLACK) and (box.skip & 1) == 0:
+                    for e in range(b + 1, cnt):
+                        k = ids[e]
+                        ck = centre_of(k, positions)
+                        if masked != 0:
+                            if (mask_ab & masks[e]) == wp.uint64(0):
+                                if conditioned(ci, cj, ck):
+                                    continue
+                        big_k = wp.float64(radii[k]) + rho
+                        vp = vertex_points(ci, big_i, cj, big_j, ck, big_k)
+                        if vp[2, 0] != wp.float64(0.0):
+                            for t in range(2):
+                                z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+                                w = x - z
+                                if dot3(w, w) <= rho2:
+                                    res = candidate_check_list(
+                                        x,
+                                        z,
+                                        i,
+                                        j,
+                                        k,
+                                        hint,
+                                        rmax,
+                                        positions,
+                                        radii,
+                                        heads,
+                                        next_in_bin,
+                                        reach,
+                                        box,
+                                        walls,
+                                        g.ids,
+                                        g.n,
+                                    )
+                                    if res == CANDIDATE_OK:
+                                        return wp.vec4i(i, j, k, t)
+                                    if res >= 0:
+                                        hint = res
     if wall_search(x, ids, cnt, 1, span, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
         return wp.vec4i(-1, -1, -1, 0)
     return wp.vec4i(-2, -1, -1, 0)
@@ -1618,7 +1469,7 @@ def probe_reaches(
     walls: LampWalls,
 ) -> wp.bool:
     """Whether x is fluid by exact distances (``probe_search``, whose docstring says how)."""
-    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls, WetSplit(), 0)
+    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
     return w[0] != -2
 
 
@@ -2181,9 +2032,7 @@ def wet_classify(
                     witnessed += 1
                     continue
         x = voxel_point(wjk, b, box)
-        found = probe_search(
-            x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, WetSplit(), 0
-        )
+        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
@@ -2224,7 +2073,6 @@ def wet_classify_queued(
     shrink: wp.float64,
     n_particles: wp.int32,
     # outputs
-    split: WetSplit,
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
@@ -2234,9 +2082,7 @@ def wet_classify_queued(
 ):
     """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
     into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel's
-    witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its witness.
-    Given room in ``split`` (never with the skin: a deferred test keeps no witness), a test hands its pairs and
-    triples to ``wet_classify_pairs``."""
+    witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its witness."""
     slot = wp.tid()
     if slot >= queued[0]:
         return
@@ -2256,9 +2102,7 @@ def wet_classify_queued(
                 wp.atomic_add(diag, DIAG_RESCUED, 1)
                 wp.atomic_add(skin, SKIN_WITNESSED, 1)
                 return
-    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, split, v)
-    if found[0] == -3:
-        return
+    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
     if kept.shape[0] > 0:
         witness_store(v, found, keys, wits, skin)
     if found[0] != -2:
@@ -2268,68 +2112,6 @@ def wet_classify_queued(
         if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
             wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
             wp.atomic_add(skin, SKIN_CERTIFIED, 1)
-
-
-@wp.kernel
-def wet_classify_pairs(
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    box: WetBox,
-    walls: LampWalls,
-    reach: wp.array[wp.uint32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    rmax: wp.array[wp.float32],
-    # outputs
-    split: WetSplit,
-    fluid: wp.array[wp.uint32],
-    diag: wp.array[wp.int32],
-):
-    """One thread per item (record, a) of ``split`` (``wet_classify_queued``'s deferred tests), launched for the
-    items' capacity: the test's pairs and triples led by near sphere a (``probe_pairs_of``). The first item to find
-    a valid candidate sets the voxel's bit and counts it (the record's flag); an item whose test is already wet
-    returns at once. The voxel is fluid iff some candidate is valid, so the answer is the one thread's."""
-    t = wp.tid()
-    if t >= wp.min(split.used[SPLIT_ITEMS], split.items.shape[0]):
-        return
-    item = split.items[t]
-    base = item[0]
-    if base < 0:
-        return
-    if split.pool[base + REC_WET] != 0:
-        return
-    v = split.pool[base + REC_VOXEL]
-    cnt = split.pool[base + REC_CNT]
-    mb = split.pool[base + REC_MASKS]
-    idx = v / 32
-    b = v - idx * 32
-    x = voxel_point(word_coords(box, idx), b, box)
-    found, _hint = probe_pairs_of(
-        item[1],
-        x,
-        split.pool,
-        base + REC_HEAD,
-        cnt,
-        split.masks,
-        wp.max(mb, 0),
-        wp.where(mb >= 0, 1, 0),
-        split.pool[base + REC_HINT],
-        split.pool,
-        base + REC_HEAD + cnt,
-        split.pool[base + REC_NG],
-        wp.float64(rmax[0]),
-        positions,
-        radii,
-        heads,
-        next_in_bin,
-        reach,
-        box,
-        walls,
-    )
-    if found[0] != -2:
-        if wp.atomic_cas(split.pool, base + REC_WET, 0, 1) == 0:
-            wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
-            wp.atomic_add(diag, DIAG_RESCUED, 1)
 
 
 @wp.func

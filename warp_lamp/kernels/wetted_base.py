@@ -226,26 +226,6 @@ class Gathered:
     n_near: wp.int32
 
 
-#: An exact test's record in ``WetSplit.pool`` (int32): its voxel (word * 32 + bit), near spheres, gathered
-#: spheres (-1: too many, the bins are walked), a flag set by the first item that finds it wet, the blocker hint, the
-#: first of its masks in ``WetSplit.masks`` (-1: none), then the near ids and the gathered ids.
-REC_VOXEL, REC_CNT, REC_NG, REC_WET, REC_HINT, REC_MASKS, REC_HEAD = 0, 1, 2, 3, 4, 5, 6
-#: ``WetSplit.used``: int32s taken from the pool, uint64s from the masks, items listed, tests deferred.
-SPLIT_POOL, SPLIT_MASKS, SPLIT_ITEMS, SPLIT_TESTS, N_SPLIT = 0, 1, 2, 3, 4
-
-
-@wp.struct
-class WetSplit:
-    """Room for queued exact tests to hand their pairs and triples to a thread per (test, sphere): records in
-    ``pool`` and ``masks``, items ``(record, a)`` in ``items``, their use in ``used`` (``SPLIT_*``; past a
-    capacity a test runs its pairs itself). Empty arrays: no test is deferred."""
-
-    pool: wp.array[wp.int32]
-    masks: wp.array[wp.uint64]
-    items: wp.array[wp.vec2i]
-    used: wp.array[wp.int32]
-
-
 @wp.func
 def wall_normal(pl: wp.vec4) -> wp.vec3d:
     return wp.vec3d(wp.float64(pl[0]), wp.float64(pl[1]), wp.float64(pl[2]))
