@@ -67,7 +67,6 @@ from warp_lamp.kernels.wetted_base import (
     Chord,
     DeepDepths,
     DeepIds,
-    Gathered,
     GatherIds,
     NearList,
     ReachMasks,
@@ -446,14 +445,17 @@ def gather_near(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
-) -> Gathered:
-    """The spheres whose centres lie within (r + 2 rho + diagonal)(1 + slack) of x, from the bins within
-    (rmax + 2 rho + diagonal)(1 + slack) of x: first those of the bins ``span`` (the candidates' blocker search, in
-    its walk order), then the others. Every sphere that can hold a candidate within rho of x or cut a segment from
-    it to a corner of its voxel-centre cube is among them."""
-    out = Gathered()
-    out.n = 0
-    out.n_near = 0
+) -> tuple[GatherIds, wp.int32, wp.int32]:
+    """(ids, n, n_near): the spheres whose centres lie within (r + 2 rho + diagonal)(1 + slack) of x, from the
+    bins within (rmax + 2 rho + diagonal)(1 + slack) of x: first those of the bins ``span`` (the candidates' blocker
+    search, in its walk order), then the others. Every sphere that can hold a candidate within rho of x or cut a
+    segment from it to a corner of its voxel-centre cube is among them: ``ids[:n]``, the first ``n_near`` from the
+    bins of ``span`` (n -1: more than ``box.gather``). A tuple, not a struct: Warp writes it into the caller's
+    variables, where a struct member's list is copied whole into a new local at each use (six 512-byte copies in
+    the exact test's frame)."""
+    ids = GatherIds()
+    n = int(0)
+    n_near = int(0)
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
     fs = bin_span(x, far, box)
     for part in range(2):
@@ -468,23 +470,23 @@ def gather_near(
                         and bz >= span.lo[2]
                         and bz <= span.hi[2]
                     )
-                    if inner == (part == 0) and out.n >= 0:
+                    if inner == (part == 0) and n >= 0:
                         q = bin_head(bx, by, bz, box, heads)
-                        while q >= 0 and out.n >= 0:
+                        while q >= 0 and n >= 0:
                             lim = (wp.float64(radii[q]) + wp.float64(2.0) * box.rho + box.diag) * (
                                 wp.float64(1.0) + SLACK
                             )
                             v = x - centre_of(q, positions)
                             if dot3(v, v) <= lim * lim:
-                                if out.n < box.gather:
-                                    out.ids[out.n] = q
-                                    out.n += 1
+                                if n < box.gather:
+                                    ids[n] = q
+                                    n += 1
                                 else:
-                                    out.n = -1
+                                    n = -1
                             q = next_in_bin[q]
         if part == 0:
-            out.n_near = out.n
-    return out
+            n_near = n
+    return ids, n, n_near
 
 
 @wp.func
@@ -1097,11 +1099,11 @@ def reach_masks(
     within r + rho + diagonal of sphere ``ids[a]``'s centre (slack 1e-6). A valid candidate z within rho of x needs
     a reached corner of its voxel-centre cube, which lies within one diagonal of z, hence of every inflated sphere
     z is on: so a candidate on spheres whose masks share no bit is not valid, and need not be computed. ``on`` is
-    0 (try every candidate) with more than ``MASK_SPHERES`` spheres or ``REACH_POINTS`` points, too many rows, or
-    x near enough to the box's surroundings that a candidate's cube could be clamped (its corners then need not
-    lie near z)."""
+    0 (try every candidate) with fewer than ``box.mask_from`` or more than ``MASK_SPHERES`` spheres or
+    ``REACH_POINTS`` points, too many rows, or x near enough to the box's surroundings that a candidate's cube could
+    be clamped (its corners then need not lie near z)."""
     masks = ReachMasks()
-    if cnt > MASK_SPHERES:
+    if cnt > MASK_SPHERES or cnt < box.mask_from:
         return masks, 0
     rho = box.rho
     loose = wp.float64(1.0) + WALL_SLACK
@@ -1210,7 +1212,7 @@ def probe_search(
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
     span = bin_span(x, near, box)
     # The spheres every candidate's searches visit, gathered once (the walks repeated them per candidate).
-    g = gather_near(x, span, rmax, positions, radii, heads, next_in_bin, box)
+    gids, gn, gnear = gather_near(x, span, rmax, positions, radii, heads, next_in_bin, box)
     if lattice == 0:
         for wi in range(walls.n):
             if plane_value(walls.frame[wi], x) < wp.float64(0.0):
@@ -1228,7 +1230,7 @@ def probe_search(
                         q = next_in_bin[q]
         if (
             candidate_check_list(
-                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
             )
             == CANDIDATE_OK
         ):
@@ -1243,9 +1245,9 @@ def probe_search(
     top = DeepIds()
     depth = DeepDepths()
     ntop = int(0)
-    if g.n >= 0:
-        for t in range(g.n_near):
-            i = g.ids[t]
+    if gn >= 0:
+        for t in range(gnear):
+            i = gids[t]
             big = wp.float64(radii[i]) + rho
             v = x - centre_of(i, positions)
             d2 = dot3(v, v)
@@ -1293,9 +1295,9 @@ def probe_search(
                         i = next_in_bin[i]
     if cnt > limit:
         cnt = int(0)
-        if g.n >= 0:
-            for t in range(g.n_near):
-                i = g.ids[t]
+        if gn >= 0:
+            for t in range(gnear):
+                i = gids[t]
                 if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
                     if not covered_by_deep(x, i, top, ntop, positions, radii, box):
                         if cnt < limit:
@@ -1352,10 +1354,9 @@ def probe_search(
     hint = int(-1)
     if (box.skip & 16) != 0:
         return wp.vec4i(-2, -1, -1, 0)
-    masks = ReachMasks()
-    masked = int(0)
-    if cnt >= box.mask_from:
-        masks, masked = reach_masks(x, ids, cnt, positions, radii, reach, box, walls)
+    # Called below the threshold too (it returns at once): masks assigned in a branch are merged by a whole-vector
+    # copy.
+    masks, masked = reach_masks(x, ids, cnt, positions, radii, reach, box, walls)
     all_bits = ~wp.uint64(0)
     # Faces: the commonest answer, so first.
     for a in range(cnt * wp.where((box.skip & 4) != 0, 0, 1)):
@@ -1371,7 +1372,7 @@ def probe_search(
             w = x - z
             if dot3(w, w) <= rho2:
                 res = candidate_check_list(
-                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
                 )
                 if res == CANDIDATE_OK:
                     return wp.vec4i(i, -1, -1, 0)
@@ -1406,7 +1407,7 @@ def probe_search(
                 # not lie on sphere j).
                 if e2 <= rho2 and mask_ab != wp.uint64(0):
                     res = candidate_check_list(
-                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, g.ids, g.n
+                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
                     )
                     if res == CANDIDATE_OK:
                         return wp.vec4i(i, j, -1, 0)
@@ -1442,8 +1443,8 @@ def probe_search(
                                         reach,
                                         box,
                                         walls,
-                                        g.ids,
-                                        g.n,
+                                        gids,
+                                        gn,
                                     )
                                     if res == CANDIDATE_OK:
                                         return wp.vec4i(i, j, k, t)

@@ -216,16 +216,6 @@ def cross3(a: wp.vec3d, b: wp.vec3d) -> wp.vec3d:
     return wp.vec3d(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@wp.struct
-class Gathered:
-    """``gather_near``'s answer: ``ids[:n]`` the spheres, the first ``n_near`` from the bins of ``span`` (-1 in n:
-    more than ``box.gather``)."""
-
-    ids: GatherIds
-    n: wp.int32
-    n_near: wp.int32
-
-
 @wp.func
 def wall_normal(pl: wp.vec4) -> wp.vec3d:
     return wp.vec3d(wp.float64(pl[0]), wp.float64(pl[1]), wp.float64(pl[2]))
