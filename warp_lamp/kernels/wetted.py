@@ -263,13 +263,18 @@ def segment_blocked(
 
 
 @wp.func
-def cube_corner_low(z: wp.vec3d, box: WetBox) -> wp.vec3i:
-    """The lowest corner of the voxel-centre cube that holds z, clamped to the box's surroundings [-2, n + 1]."""
+def cube_corner_low(z: wp.vec3d, box: WetBox):
+    """(lo, clamped): the lowest corner of the voxel-centre cube that holds z, clamped to the box's surroundings
+    [-2, n + 1], and 1 when the clamp moved it (its corners may then lie farther from z)."""
     lo = wp.vec3i(0)
+    clamped = int(0)
     for a in range(3):
-        f = wp.clamp(wp.floor(z[a] / box.h[a] - wp.float64(0.5)), wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
+        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
+        if f != u:
+            clamped = 1
         lo[a] = wp.int32(f)
-    return lo
+    return lo, clamped
 
 
 @wp.func
@@ -323,7 +328,7 @@ def candidate_check(
     blocks the segment to a reached corner: g is affine, the corner keeps rho from every wall and z from every wall
     but its own, on whose offset plane it lies. Without a reached corner z is not valid, whatever blocks it: -1
     before any search."""
-    lo = cube_corner_low(z, box)
+    lo, _clamped = cube_corner_low(z, box)
     corners = reached_corners(lo, reach, box, walls)
     if corners == 0:
         return -1
@@ -381,14 +386,7 @@ def candidate_check_list(
     z: then the segments walk the bins."""
     if ng < 0:
         return candidate_check(x, z, i, j, k, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
-    lo = wp.vec3i(0)
-    clamped = int(0)
-    for a in range(3):
-        u = wp.floor(z[a] / box.h[a] - wp.float64(0.5))
-        f = wp.clamp(u, wp.float64(-2.0), wp.float64(box.n[a] + 1))
-        if f != u:
-            clamped = 1
-        lo[a] = wp.int32(f)
+    lo, clamped = cube_corner_low(z, box)
     corners = reached_corners(lo, reach, box, walls)
     if corners == 0:
         return -1

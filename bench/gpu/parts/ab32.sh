@@ -8,7 +8,7 @@ bench() { # tag, dir, extra args...
   local tag=$1 dir=$2; shift 2
   local pp="/root/site:$PWD"
   [ "$dir" != "." ] && pp="$PWD/$dir:/root/site"
-  PYTHONPATH="$pp" timeout 200 python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 \
+  PYTHONPATH="$pp" timeout 300 python3 bench/experiments/wetted_bench.py --device cuda:0 --rho-diameters 0.5 \
     --repeats 20 "$@" --out $T/$tag.json > $T/$tag.log 2>&1
   echo "$tag rc=$?"
 }
