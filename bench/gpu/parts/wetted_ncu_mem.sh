@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Nsight Compute on the queued exact tests (wet_classify_queued), specimen and 1M lattice (rho = r-bar): where the
+# time goes in memory: local (the frame: spills and local vectors) against global bytes, L1 hit rates, stall reasons.
+NCU="$(command -v ncu || ls /usr/local/cuda*/bin/ncu /opt/nvidia/nsight-compute/*/ncu 2>/dev/null | head -1)"
+if [ -z "$NCU" ]; then echo "ncu: not found on this machine"; exit 0; fi
+for scene in specimen lattice; do
+  timeout 240 "$NCU" --target-processes all -k "regex:wet_classify_queued" --launch-skip 2 --launch-count 1 \
+    --section MemoryWorkloadAnalysis --section MemoryWorkloadAnalysis_Tables --section WarpStateStats --section LaunchStats \
+    --metrics gpu__time_duration.sum,smsp__inst_executed.sum,l1tex__t_bytes_pipe_lsu_mem_local_op_ld.sum,l1tex__t_bytes_pipe_lsu_mem_local_op_st.sum,l1tex__t_bytes_pipe_lsu_mem_global_op_ld.sum,smsp__thread_inst_executed_per_inst_executed.ratio \
+    --csv --page details python3 bench/experiments/ncu_probe.py wetted --updates 3 --scene $scene \
+    > "$OUT/ncu-mem-$scene.csv" 2> "$OUT/ncu-mem-$scene.err"
+  echo "== $scene rc=$?"
+  python3 - "$OUT/ncu-mem-$scene.csv" <<'PY'
+import csv, sys
+try:
+    rows = list(csv.DictReader(l for l in open(sys.argv[1]) if l.startswith('"')))
+except Exception as e:
+    print("no csv:", e); sys.exit(0)
+keep = ("time", "local", "global", "Hit", "Stall", "Registers", "Stack", "L1", "L2", "DRAM", "Throughput", "inst_executed", "Local", "thread_inst", "Warp Cycles")
+for r in rows:
+    name = r.get("Metric Name", "")
+    if any(k in name for k in keep):
+        print(f"  {r.get('Section Name','')[:22]:22s} {name[:64]:64s} {r.get('Metric Value','')} {r.get('Metric Unit','')}")
+PY
+  tail -2 "$OUT/ncu-mem-$scene.err"
+done
