@@ -10,13 +10,5 @@ timeout 200 "$NCU" --target-processes all -k "regex:$kern" --launch-skip 2 --lau
   --metrics smsp__thread_inst_executed_per_inst_executed.ratio,smsp__thread_inst_executed_pred_on_per_inst_executed.ratio,smsp__inst_executed.sum,gpu__time_duration.sum,smsp__warps_active.avg.per_cycle_active,smsp__warps_eligible.avg.per_cycle_active \
   --csv --page details python3 bench/experiments/ncu_probe.py "$mode" > "$OUT/ncu-div-$kern.csv" 2> "$OUT/ncu-div-$kern.err"
 echo "== $kern rc=$?"
-python3 - "$OUT/ncu-div-$kern.csv" <<'PY'
-import csv, sys
-try:
-    rows = list(csv.DictReader(l for l in open(sys.argv[1]) if l.startswith('"')))
-except Exception as e:
-    print("no csv:", e); sys.exit(0)
-for r in rows:
-    print(f"  {r.get('Section Name','')[:22]:22s} {r.get('Metric Name','')[:62]:62s} {r.get('Metric Value','')} {r.get('Metric Unit','')}")
-PY
+python3 bench/gpu/parts/ncu_table.py "$OUT/ncu-div-$kern.csv"
 tail -2 "$OUT/ncu-div-$kern.err"

@@ -10,17 +10,7 @@ for scene in specimen lattice; do
     --csv --page details python3 bench/experiments/ncu_probe.py wetted --updates 3 --scene $scene \
     > "$OUT/ncu-mem-$scene.csv" 2> "$OUT/ncu-mem-$scene.err"
   echo "== $scene rc=$?"
-  python3 - "$OUT/ncu-mem-$scene.csv" <<'PY'
-import csv, sys
-try:
-    rows = list(csv.DictReader(l for l in open(sys.argv[1]) if l.startswith('"')))
-except Exception as e:
-    print("no csv:", e); sys.exit(0)
-keep = ("time", "local", "global", "Hit", "Stall", "Registers", "Stack", "L1", "L2", "DRAM", "Throughput", "inst_executed", "Local", "thread_inst", "Warp Cycles")
-for r in rows:
-    name = r.get("Metric Name", "")
-    if any(k in name for k in keep):
-        print(f"  {r.get('Section Name','')[:22]:22s} {name[:64]:64s} {r.get('Metric Value','')} {r.get('Metric Unit','')}")
-PY
+  python3 bench/gpu/parts/ncu_table.py "$OUT/ncu-mem-$scene.csv" time local global Hit Stall Registers Stack \
+    Throughput inst_executed Local thread_inst "Warp Cycles"
   tail -2 "$OUT/ncu-mem-$scene.err"
 done
