@@ -25,5 +25,6 @@ def hook(exact, x):
 args, sc, rho, secs = study_main(hook)
 g, n = np.array(gathered), np.array(near)
 print(f"{sc.name}: rho {rho:.4g}, {len(g)} tests, {secs:.0f} s")
-print("gathered  median/p90/p99/p99.9/max:", percentiles(g), " over 64:", int((g > 64).sum()), " over 96:", int((g > 96).sum()))
-print("near      median/p90/p99/p99.9/max:", percentiles(n), " over 32:", int((n > 32).sum()), " over 16:", int((n > 16).sum()))
+for name, v, over in (("gathered", g, (64, 96)), ("near", n, (16, 32))):
+    counts = ", ".join(f"over {k}: {int((v > k).sum())}" for k in over)
+    print(f"{name:9s} median/p90/p99/p99.9/max: {percentiles(v)}  {counts}")
