@@ -108,7 +108,7 @@ EXACT_QUEUE_PER = 16
 EXACT_QUEUE_MIN = 4096
 #: Threads per SM that run the queued exact tests (CUDA): at 255 registers a thread, 4 blocks of
 #: :data:`SPARSE_BLOCK_DIM` fill an SM's registers. Each has a row of :data:`~warp_lamp.kernels.wetted_base.GATHER`
-#: int32 for its gathered spheres, and takes the queue's slots in steps of their number.
+#: int32 for its gathered spheres, and takes the queue's next slot whenever it finishes one.
 QUEUED_THREADS_PER_SM = 256
 #: Threads per block of the launches whose work sits in few threads (the queued exact tests and the listed crossings,
 #: packed at the front of their launch; the thin chords, a thread per sphere and axis): at 146-255 registers a
@@ -343,10 +343,11 @@ def wetted_nbytes(
 
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
-    # The exact-test queue, its count and its order (each word's uncertain bits, their count and its prefix sum),
-    # the crossing list, and three int32 counters (crossings and thin chords listed, thin chords left over).
+    # The exact-test queue, its count and the slots taken, its order (each word's uncertain bits, their count and
+    # its prefix sum), the crossing list, and three int32 counters (crossings and thin chords listed, thin chords
+    # left over).
     cap = exact_queue_capacity(lay["n"], device)
-    queue = 4 * (cap + 1) + (12 * lay["n_words"] if cap > 0 else 0)
+    queue = 4 * (cap + 2) + (12 * lay["n_words"] if cap > 0 else 0)
     queue += 4 * KB.GATHER * queued_threads(cap, device)
     queue += 8 * cross_list_capacity(lay["faces"], device) + 12
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
@@ -724,7 +725,8 @@ class WettedSurface:
         rule); the tests and the benchmark's A/B set them on either device. The answer is the same."""
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
-        self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
+        # The queue's count, then how many of its slots the queued tests' threads have taken.
+        self.queued = wp.zeros(2, dtype=wp.int32, device=self.device)
         # The queued tests' gathered spheres: a row per thread, so that their checks read it with no copy.
         rows = queued_threads(self._capacity, self.device) if threads is None else min(int(threads), self._capacity)
         self._gathered = wp.zeros(KB.GATHER * rows, dtype=wp.int32, device=self.device)
@@ -1006,11 +1008,11 @@ class WettedSurface:
                     self.rmax,
                     self.exposed,
                     self.queue,
-                    self.queued,
                     self.skin,
                     n,
                 ],
                 outputs=[
+                    self.queued,
                     self._gathered,
                     self.fluid,
                     self.diag,

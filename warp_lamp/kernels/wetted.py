@@ -2137,10 +2137,10 @@ def wet_classify_queued(
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
-    queued: wp.array[wp.int32],
     shrink: wp.float64,
     n_particles: wp.int32,
     # outputs
+    queued: wp.array[wp.int32],
     scratch: wp.array[wp.int32],
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
@@ -2151,13 +2151,20 @@ def wet_classify_queued(
 ):
     """The queued voxels' exact tests (``wet_classify``), packed into as few threads as fit the GPU at once, where
     ``wet_classify``'s threads are mostly idle: launched for ``scratch``'s rows (``GATHER`` int32 each, interleaved:
-    row t's entry k at ``k * rows + t``), thread t tests slots t, t + rows, ... of the queue with its gathered list in
-    its row. With the skin, a voxel's witness is re-checked here first; a voxel tested dry gets its certificate
-    here, one tested wet its witness."""
+    row t's entry k at ``k * rows + t``), each thread takes the queue's next slot (``queued[1]``, zeroed with the
+    count ``queued[0]``) until none is left, with its gathered list in its row. Taken as they are finished, not in
+    a fixed share per thread: a fixed share left the GPU waiting on the threads whose share was slowest (measured on
+    the 1M lattice: 13 % slower than a thread per test, 27 % with a warp's share in one run). With the skin, a
+    voxel's witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its
+    witness."""
     t = wp.tid()
     rows = scratch.shape[0] / GATHER
     r_max = wp.float64(rmax[0])
-    for slot in range(t, wp.min(queued[0], queue.shape[0]), rows):
+    n = wp.min(queued[0], queue.shape[0])
+    while True:
+        slot = wp.atomic_add(queued, 1, 1)
+        if slot >= n:
+            break
         v = queue[slot]
         idx = v / 32
         b = v - idx * 32
