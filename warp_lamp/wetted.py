@@ -108,7 +108,8 @@ EXACT_QUEUE_PER = 16
 EXACT_QUEUE_MIN = 4096
 #: Threads per SM that run the queued exact tests (CUDA): at 255 registers a thread, 4 blocks of
 #: :data:`SPARSE_BLOCK_DIM` fill an SM's registers. Each has a row of :data:`~warp_lamp.kernels.wetted_base.GATHER`
-#: int32 for its gathered spheres, and takes the queue's next slot whenever it finishes one.
+#: int32 for its gathered spheres; thread t tests slot t, then takes the queue's next untaken slot past them whenever
+#: it finishes one.
 QUEUED_THREADS_PER_SM = 256
 #: Threads per block of the launches whose work sits in few threads (the queued exact tests and the listed crossings,
 #: packed at the front of their launch; the thin chords, a thread per sphere and axis): at 146-255 registers a
@@ -725,7 +726,7 @@ class WettedSurface:
         rule); the tests and the benchmark's A/B set them on either device. The answer is the same."""
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
-        # The queue's count, then how many of its slots the queued tests' threads have taken.
+        # The queue's count, then how many of its slots past the threads' first the queued tests have taken.
         self.queued = wp.zeros(2, dtype=wp.int32, device=self.device)
         # The queued tests' gathered spheres: a row per thread, so that their checks read it with no copy.
         rows = queued_threads(self._capacity, self.device) if threads is None else min(int(threads), self._capacity)
