@@ -537,6 +537,20 @@ def test_exact_tests_queued_in_voxel_order(device, rng):
         np.testing.assert_array_equal(seen[k][2], seen[(1 << 20, True)][2])
 
 
+def test_queued_tests_share_threads(device, rng):
+    """The queued exact tests give the reference's answer however many threads take them in turn, each with its
+    own interleaved row of gathered spheres: 1, 7, 64 and 4096 threads (more than there are tests)."""
+    centers, radii, grid = exact_scene(rng)
+    ref = wetted_reference(centers, radii, grid, probe_radius=0.25)
+    surface = wetted_solve(centers, radii, probe_radius=0.25, grid=grid, keep_owners=True, device=device)
+    for threads in (1, 7, 64, 4096):
+        surface._exact_queue(1 << 20, threads)
+        surface.update(*device_arrays(centers - grid.origin, radii, device))
+        d = assert_matches(surface, ref)
+        assert 300 < d.uncertain < 4096
+        assert surface._gathered.shape[0] == wl.wetted.KB.GATHER * threads
+
+
 def test_reach_masks_on_nearly_collinear_triples(device, rng):
     """The exact test's reach masks skip no valid candidate where triples are ill-conditioned: a cubic lattice of
     touching spheres jittered by ~1e-4 of the spacing (rows of nearly collinear centres), masks always and never,

@@ -64,9 +64,10 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
     skinned = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto", walls=walls)
     fresh = WettedSurface(grid, probe_radius=RHO, device=device, walls=walls)
     if packed:
-        # CUDA's layout on any device: the exact tests queued one per thread, the crossings and thin chords listed
-        # one per thread (the crossings' owners kept by the skin there too), 4 bits per classify thread.
-        skinned._exact_queue(exact_queue_capacity(skinned.shape, None))
+        # CUDA's layout on any device: the exact tests queued (7 threads taking them in turn, as CUDA's threads
+        # do), the crossings and thin chords listed one per thread (the crossings' owners kept by the skin there
+        # too), 4 bits per classify thread.
+        skinned._exact_queue(exact_queue_capacity(skinned.shape, None), 7)
         skinned._cross_list(cross_list_capacity(skinned._faces, None))
         skinned._thin_list(4096)
         skinned._bits = 4

@@ -74,6 +74,7 @@ __all__ = [
     "cross_list_capacity",
     "dilation_table",
     "exact_queue_capacity",
+    "queued_threads",
     "skin_distance",
     "thin_list_capacity",
     "unpack_bits",
@@ -105,6 +106,11 @@ SKIN_BYTES_PER_PARTICLE = 20
 EXACT_QUEUE_PER = 16
 #: ... and at least this many.
 EXACT_QUEUE_MIN = 4096
+#: Threads per SM that run the queued exact tests (CUDA): at 255 registers a thread, 4 blocks of
+#: :data:`SPARSE_BLOCK_DIM` fill an SM's registers. Each has a row of :data:`~warp_lamp.kernels.wetted_base.GATHER`
+#: int32 for its gathered spheres; thread t tests slot t, then takes the queue's next untaken slot past them whenever
+#: it finishes one.
+QUEUED_THREADS_PER_SM = 256
 #: Threads per block of the launches whose work sits in few threads (the queued exact tests and the listed crossings,
 #: packed at the front of their launch; the thin chords, a thread per sphere and axis): at 146-255 registers a
 #: thread, one block of 256 fills an SM's registers, so on the specimen 15,915 queued tests ran on 63 of the H200's
@@ -323,7 +329,8 @@ def wetted_nbytes(
     segment (about sqrt(n) rows) of the column scans, the search bins and the per-ray crossing counts, a few
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
-    :data:`EXACT_QUEUE_PER` voxels, and three words per bitmap word that place its tests in voxel order) and the
+    :data:`EXACT_QUEUE_PER` voxels, three words per bitmap word that place its tests in voxel order, and a row of
+    gathered spheres per queued thread, :func:`queued_threads`) and the
     crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
     :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
     witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
@@ -337,10 +344,12 @@ def wetted_nbytes(
 
 def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = False) -> int:
     """:func:`wetted_nbytes` of a layout: what the surface allocates for its grid-sized buffers."""
-    # The exact-test queue, its count and its order (each word's uncertain bits, their count and its prefix sum),
-    # the crossing list, and three int32 counters (crossings and thin chords listed, thin chords left over).
+    # The exact-test queue, its count and the slots taken, its order (each word's uncertain bits, their count and
+    # its prefix sum), the crossing list, and three int32 counters (crossings and thin chords listed, thin chords
+    # left over).
     cap = exact_queue_capacity(lay["n"], device)
-    queue = 4 * (cap + 1) + (12 * lay["n_words"] if cap > 0 else 0)
+    queue = 4 * (cap + 2) + (12 * lay["n_words"] if cap > 0 else 0)
+    queue += 4 * KB.GATHER * queued_threads(cap, device)
     queue += 8 * cross_list_capacity(lay["faces"], device) + 12
     kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
@@ -393,6 +402,16 @@ def exact_queue_capacity(shape, device) -> int:
     rule."""
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
     return _packed_capacity(n_vox, EXACT_QUEUE_PER, EXACT_QUEUE_MIN, device)
+
+
+def queued_threads(capacity: int, device) -> int:
+    """Threads that run a queue of ``capacity`` exact tests on ``device``: :data:`QUEUED_THREADS_PER_SM` per SM on
+    CUDA, at most ``capacity``; one on the CPU (a launch runs on one thread there)."""
+    if int(capacity) <= 0:
+        return 0
+    if not device.is_cuda:
+        return 1
+    return min(int(capacity), QUEUED_THREADS_PER_SM * int(device.sm_count))
 
 
 def cross_list_capacity(faces, device) -> int:
@@ -702,12 +721,16 @@ class WettedSurface:
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
         self.n = 0
 
-    def _exact_queue(self, capacity: int) -> None:
-        """Queue up to ``capacity`` exact tests for one thread each (0: none; the tests and the benchmark's A/B
-        set it on either device); the answer is the same."""
+    def _exact_queue(self, capacity: int, threads: int | None = None) -> None:
+        """Queue up to ``capacity`` exact tests (0: none) for ``threads`` threads (None: :func:`queued_threads`'s
+        rule); the tests and the benchmark's A/B set them on either device. The answer is the same."""
         self._capacity = int(capacity)
         self.queue = wp.zeros(self._capacity, dtype=wp.int32, device=self.device)
-        self.queued = wp.zeros(1, dtype=wp.int32, device=self.device)
+        # The queue's count, then how many of its slots past the threads' first the queued tests have taken.
+        self.queued = wp.zeros(2, dtype=wp.int32, device=self.device)
+        # The queued tests' gathered spheres: a row per thread, so that their checks read it with no copy.
+        rows = queued_threads(self._capacity, self.device) if threads is None else min(int(threads), self._capacity)
+        self._gathered = wp.zeros(KB.GATHER * rows, dtype=wp.int32, device=self.device)
         self._queue_in_order(self._ordered)
 
     def _queue_in_order(self, ordered: bool) -> None:
@@ -974,7 +997,7 @@ class WettedSurface:
         if self._capacity > 0:
             wp.launch(
                 K.wet_classify_queued,
-                dim=self._capacity,
+                dim=self._gathered.shape[0] // KB.GATHER,
                 inputs=[
                     positions,
                     radii,
@@ -986,11 +1009,19 @@ class WettedSurface:
                     self.rmax,
                     self.exposed,
                     self.queue,
-                    self.queued,
                     self.skin,
                     n,
                 ],
-                outputs=[self.fluid, self.diag, self.kept, self._skin_state, self._wit_keys, self._wits],
+                outputs=[
+                    self.queued,
+                    self._gathered,
+                    self.fluid,
+                    self.diag,
+                    self.kept,
+                    self._skin_state,
+                    self._wit_keys,
+                    self._wits,
+                ],
                 device=d,
                 block_dim=SPARSE_BLOCK_DIM,
             )

@@ -29,6 +29,8 @@ exact test has the offset planes among its candidates (``wall_search``), and a c
 axis than to any sphere goes to the wall (``load_crossing``, ``wall_counts``).
 """
 
+from typing import Any
+
 import warp as wp
 
 from warp_lamp.kernels.walls import LampWalls, plane_value
@@ -44,6 +46,7 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_RESCUED,
     DIAG_THIN,
     DIAG_UNCERTAIN,
+    GATHER,
     MASK_SPHERES,
     REACH_POINTS,
     REACH_ROWS,
@@ -375,11 +378,14 @@ def candidate_check_list(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
-    gathered: GatherIds,
+    gathered: Any,
+    gbase: wp.int32,
+    gstride: wp.int32,
     ng: wp.int32,
 ) -> wp.int32:
     """``candidate_check`` for z within rho of x, its blocker and segment searches over the spheres ``gather_near``
-    collected around x (``ng`` of them; -1: too many, so the bins are walked). The same answer and the same blocker:
+    collected around x (``gathered[gbase + t * gstride]`` for t < ng, as ``gather_near`` stored them; ng -1: too many,
+    so the bins are walked). The same answer and the same blocker:
     the list holds, in the bins' order, every sphere of the bins that the walks visit that can hold z (centre within
     r + 2 rho of x) or cut a segment from z to a corner of its voxel-centre cube (within r + 2 rho + diagonal) and
     only the spheres beyond, which can do neither. A corner clamped to the box's surroundings may lie farther from
@@ -397,7 +403,7 @@ def candidate_check_list(
     if not walls_allow(z, i, j, k, walls, box.rho):
         return -1
     for t in range(ng):
-        q = gathered[t]
+        q = gathered[gbase + t * gstride]
         if inside_inflated(z, q, positions, radii, box):
             if not defining(q, i, j, k, positions, radii):
                 return q
@@ -423,7 +429,7 @@ def candidate_check_list(
                     half = wp.sqrt(dd) * wp.float64(0.5)
                     cut = int(0)
                     for t in range(ng):
-                        q = gathered[t]
+                        q = gathered[gbase + t * gstride]
                         if segment_cut(y, d, dd, mid, half, q, positions, radii, box):
                             if not defining(q, i, j, k, positions, radii):
                                 cut = 1
@@ -435,6 +441,9 @@ def candidate_check_list(
 
 @wp.func
 def gather_near(
+    store: Any,
+    base: wp.int32,
+    stride: wp.int32,
     x: wp.vec3d,
     span: BinSpan,
     rmax: wp.float64,
@@ -443,15 +452,15 @@ def gather_near(
     heads: wp.array[wp.int32],
     next_in_bin: wp.array[wp.int32],
     box: WetBox,
-) -> tuple[GatherIds, wp.int32, wp.int32]:
-    """(ids, n, n_near): the spheres whose centres lie within (r + 2 rho + diagonal)(1 + slack) of x, from the
+) -> tuple[Any, wp.int32, wp.int32]:
+    """(store, n, n_near): the spheres whose centres lie within (r + 2 rho + diagonal)(1 + slack) of x, from the
     bins within (rmax + 2 rho + diagonal)(1 + slack) of x: first those of the bins ``span`` (the candidates' blocker
     search, in its walk order), then the others. Every sphere that can hold a candidate within rho of x or cut a
-    segment from it to a corner of its voxel-centre cube is among them: ``ids[:n]``, the first ``n_near`` from the
-    bins of ``span`` (n -1: more than ``box.gather``). A tuple, not a struct: Warp writes it into the caller's
-    variables, where a struct member's list is copied whole into a new local at each use (six 512-byte copies in
-    the exact test's frame)."""
-    ids = GatherIds()
+    segment from it to a corner of its voxel-centre cube is among them: ``store[base + t * stride]`` for t < n, the
+    first ``n_near`` from the bins of ``span`` (n -1: more than ``box.gather``). ``store`` is a local ``GatherIds``
+    (base 0, stride 1; filled and returned) or a scratch array (a row per thread, interleaved so that a warp's lanes
+    coalesce; filled in place): passed to the candidates' checks, an array costs no copy, where a local list is
+    copied whole into each call (measured: six copies of the list in the queued tests' frame)."""
     n = int(0)
     n_near = int(0)
     far = (rmax + wp.float64(2.0) * box.rho + box.diag) * (wp.float64(1.0) + SLACK)
@@ -477,14 +486,14 @@ def gather_near(
                             v = x - centre_of(q, positions)
                             if dot3(v, v) <= lim * lim:
                                 if n < box.gather:
-                                    ids[n] = q
+                                    store[base + n * stride] = q
                                     n += 1
                                 else:
                                     n = -1
                             q = next_in_bin[q]
         if part == 0:
             n_near = n
-    return ids, n, n_near
+    return store, n, n_near
 
 
 @wp.func
@@ -1192,6 +1201,9 @@ def probe_search(
     reach: wp.array[wp.uint32],
     box: WetBox,
     walls: LampWalls,
+    store: Any,
+    sbase: wp.int32,
+    sstride: wp.int32,
 ) -> wp.vec4i:
     """``probe_reaches`` with its witness: (i, j, k, t) of the valid candidate it found on spheres alone (a radial
     projection on i: j = k = -1; a circle point of i < j: k = -1; point t of the triple i < j < k), (-1, ...) for
@@ -1210,7 +1222,7 @@ def probe_search(
     near = (rmax + wp.float64(2.0) * rho) * (wp.float64(1.0) + SLACK)
     span = bin_span(x, near, box)
     # The spheres every candidate's searches visit, gathered once (the walks repeated them per candidate).
-    gids, gn, gnear = gather_near(x, span, rmax, positions, radii, heads, next_in_bin, box)
+    gids, gn, gnear = gather_near(store, sbase, sstride, x, span, rmax, positions, radii, heads, next_in_bin, box)
     if lattice == 0:
         for wi in range(walls.n):
             if plane_value(walls.frame[wi], x) < wp.float64(0.0):
@@ -1228,7 +1240,24 @@ def probe_search(
                         q = next_in_bin[q]
         if (
             candidate_check_list(
-                x, x, -1, -1, -1, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
+                x,
+                x,
+                -1,
+                -1,
+                -1,
+                -1,
+                rmax,
+                positions,
+                radii,
+                heads,
+                next_in_bin,
+                reach,
+                box,
+                walls,
+                gids,
+                sbase,
+                sstride,
+                gn,
             )
             == CANDIDATE_OK
         ):
@@ -1245,7 +1274,7 @@ def probe_search(
     ntop = int(0)
     if gn >= 0:
         for t in range(gnear):
-            i = gids[t]
+            i = gids[sbase + t * sstride]
             big = wp.float64(radii[i]) + rho
             v = x - centre_of(i, positions)
             d2 = dot3(v, v)
@@ -1295,7 +1324,7 @@ def probe_search(
         cnt = int(0)
         if gn >= 0:
             for t in range(gnear):
-                i = gids[t]
+                i = gids[sbase + t * sstride]
                 if exposed[i] != 0 and gate_ok(x, i, positions, radii, box):
                     if not covered_by_deep(x, i, top, ntop, positions, radii, box):
                         if cnt < limit:
@@ -1370,7 +1399,24 @@ def probe_search(
             w = x - z
             if dot3(w, w) <= rho2:
                 res = candidate_check_list(
-                    x, z, i, -1, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
+                    x,
+                    z,
+                    i,
+                    -1,
+                    -1,
+                    hint,
+                    rmax,
+                    positions,
+                    radii,
+                    heads,
+                    next_in_bin,
+                    reach,
+                    box,
+                    walls,
+                    gids,
+                    sbase,
+                    sstride,
+                    gn,
                 )
                 if res == CANDIDATE_OK:
                     return wp.vec4i(i, -1, -1, 0)
@@ -1405,7 +1451,24 @@ def probe_search(
                 # not lie on sphere j).
                 if e2 <= rho2 and mask_ab != wp.uint64(0):
                     res = candidate_check_list(
-                        x, z, i, j, -1, hint, rmax, positions, radii, heads, next_in_bin, reach, box, walls, gids, gn
+                        x,
+                        z,
+                        i,
+                        j,
+                        -1,
+                        hint,
+                        rmax,
+                        positions,
+                        radii,
+                        heads,
+                        next_in_bin,
+                        reach,
+                        box,
+                        walls,
+                        gids,
+                        sbase,
+                        sstride,
+                        gn,
                     )
                     if res == CANDIDATE_OK:
                         return wp.vec4i(i, j, -1, 0)
@@ -1442,6 +1505,8 @@ def probe_search(
                                         box,
                                         walls,
                                         gids,
+                                        sbase,
+                                        sstride,
                                         gn,
                                     )
                                     if res == CANDIDATE_OK:
@@ -1468,7 +1533,9 @@ def probe_reaches(
     walls: LampWalls,
 ) -> wp.bool:
     """Whether x is fluid by exact distances (``probe_search``, whose docstring says how)."""
-    w = probe_search(x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+    w = probe_search(
+        x, lattice, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls, GatherIds(), 0, 1
+    )
     return w[0] != -2
 
 
@@ -2031,7 +2098,9 @@ def wet_classify(
                     witnessed += 1
                     continue
         x = voxel_point(wjk, b, box)
-        found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
+        found = probe_search(
+            x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, GatherIds(), 0, 1
+        )
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
@@ -2068,10 +2137,11 @@ def wet_classify_queued(
     rmax: wp.array[wp.float32],
     exposed: wp.array[wp.int32],
     queue: wp.array[wp.int32],
-    queued: wp.array[wp.int32],
     shrink: wp.float64,
     n_particles: wp.int32,
     # outputs
+    queued: wp.array[wp.int32],
+    scratch: wp.array[wp.int32],
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
@@ -2079,38 +2149,54 @@ def wet_classify_queued(
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
 ):
-    """One thread per queued voxel (``wet_classify``), launched for the queue's capacity: the exact tests packed
-    into as few threads as there are tests, where ``wet_classify``'s threads are mostly idle. With the skin, a voxel's
-    witness is re-checked here first; a voxel tested dry gets its certificate here, one tested wet its witness."""
-    slot = wp.tid()
-    if slot >= queued[0]:
-        return
-    v = queue[slot]
-    idx = v / 32
-    b = v - idx * 32
-    wjk = word_coords(box, idx)
-    x = voxel_point(wjk, b, box)
+    """The queued voxels' exact tests (``wet_classify``), packed into as few threads as fit the GPU at once, where
+    ``wet_classify``'s threads are mostly idle: launched for ``scratch``'s rows (``GATHER`` int32 each, interleaved:
+    row t's entry k at ``k * rows + t``), thread t tests slot t, then the slots past ``rows`` one at a time as it
+    finishes (``queued[1]``, zeroed with the count ``queued[0]``, counts those taken), with its gathered list in its
+    row. The first slot by thread keeps a warp's lanes on neighbouring voxels and the tests spread over the SMs as
+    blocks are (slots taken from the counter from the start cost the specimen 10%); the rest as they finish, because
+    a fixed share per thread left the GPU waiting on the threads whose share was slowest (the 1M lattice 13% slower
+    than a thread per test; 27% with each warp's share in one run). With the skin, a voxel's witness is re-checked
+    here first; a voxel tested dry gets its certificate here, one tested wet its witness."""
+    t = wp.tid()
+    rows = scratch.shape[0] / GATHER
     r_max = wp.float64(rmax[0])
-    if kept.shape[0] > 0:
-        wit = witness_find(v, keys, wits)
-        if wit[0] >= 0:
-            if witness_holds(
-                x, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-            ):
-                wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
-                wp.atomic_add(diag, DIAG_RESCUED, 1)
-                wp.atomic_add(skin, SKIN_WITNESSED, 1)
-                return
-    found = probe_search(x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls)
-    if kept.shape[0] > 0:
-        witness_store(v, found, keys, wits, skin)
-    if found[0] != -2:
-        wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
-        wp.atomic_add(diag, DIAG_RESCUED, 1)
-    elif kept.shape[0] > 0:
-        if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
-            wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
-            wp.atomic_add(skin, SKIN_CERTIFIED, 1)
+    n = wp.min(queued[0], queue.shape[0])
+    first = int(1)
+    while True:
+        slot = t
+        if first == 0:
+            slot = rows + wp.atomic_add(queued, 1, 1)
+        first = 0
+        if slot >= n:
+            break
+        v = queue[slot]
+        idx = v / 32
+        b = v - idx * 32
+        wjk = word_coords(box, idx)
+        x = voxel_point(wjk, b, box)
+        if kept.shape[0] > 0:
+            wit = witness_find(v, keys, wits)
+            if wit[0] >= 0:
+                if witness_holds(
+                    x, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+                ):
+                    wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+                    wp.atomic_add(diag, DIAG_RESCUED, 1)
+                    wp.atomic_add(skin, SKIN_WITNESSED, 1)
+                    continue
+        found = probe_search(
+            x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, scratch, t, rows
+        )
+        if kept.shape[0] > 0:
+            witness_store(v, found, keys, wits, skin)
+        if found[0] != -2:
+            wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+            wp.atomic_add(diag, DIAG_RESCUED, 1)
+        elif kept.shape[0] > 0:
+            if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+                wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
+                wp.atomic_add(skin, SKIN_CERTIFIED, 1)
 
 
 @wp.func

@@ -2,7 +2,7 @@
 # Issue 32: wetted_bench's stages A/B(/C) in one run on one GPU: the trees in AB_TREES ("tag:dir ...", dir "." this
 # tree, else a carried `git archive <commit> warp_lamp | tar -x -C <dir>`), specimen, slot block and 1M lattice
 # (rho = r-bar), then the small scenes again in the same order; the table last.
-T=/tmp/ab32
+T=/tmp/ab32-${CUDA_VISIBLE_DEVICES:-0}
 mkdir -p $T
 bench() { # tag, dir, extra args...
   local tag=$1 dir=$2; shift 2
