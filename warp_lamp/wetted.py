@@ -330,10 +330,10 @@ def wetted_nbytes(
     scalars; with ``keep_owners``, two int32 per voxel face of the three axes (the crossing's sphere, the thin
     chords there); :data:`BYTES_PER_WALL` per wall; on a CUDA ``device``, the exact test's queue (one int32 per
     :data:`EXACT_QUEUE_PER` voxels, three words per bitmap word that place its tests in voxel order, and a row of
-    gathered spheres per queued thread, :func:`queued_threads`) and the
-    crossing list (two int32 per :data:`CROSS_LIST_PER` voxel faces,
-    :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one more bitmap, its state and the
-    witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes a slot together).
+    gathered spheres per queued thread, :func:`queued_threads`) and the crossing list (two int32 per
+    :data:`CROSS_LIST_PER` voxel faces, :func:`cross_list_capacity`); with a ``skin`` (:func:`skin_distance`), one
+    more bitmap, its state and the witness and crossing-owner tables (:func:`witness_capacity` slots each, 28 bytes
+    a slot together).
     Particles add :data:`BYTES_PER_PARTICLE` each (on CUDA :data:`CUDA_BYTES_PER_PARTICLE` more, and
     :data:`SKIN_BYTES_PER_PARTICLE` with the skin)."""
     rho = check_probe_radius(probe_radius)
@@ -684,9 +684,10 @@ class WettedSurface:
         self._table = wp.array(self.table.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self._table_band = wp.array(self.table_band.ravel().astype(np.int32), dtype=wp.int32, device=d)
         self.diag = wp.zeros(KB.N_DIAG, dtype=wp.int32, device=d)
-        # The exact test's queue (CUDA): the band's undecided voxels packed into one thread each, up to one voxel
-        # in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it the classify thread tests the voxel
-        # itself, as every thread does on the CPU, where a launch runs on one thread and packing gains nothing.
+        # The exact test's queue (CUDA): the band's undecided voxels packed for as many threads as fit the GPU at
+        # once (queued_threads), up to one voxel in EXACT_QUEUE_PER of the box (at least EXACT_QUEUE_MIN); past it
+        # the classify thread tests the voxel itself, as every thread does on the CPU, where a launch runs on one
+        # thread and packing gains nothing.
         self._ordered = True
         self._exact_queue(exact_queue_capacity(lay["n"], d))
         # The crossing list (CUDA): the crossings found by the face-word threads, loaded by a thread each.
