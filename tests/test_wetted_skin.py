@@ -5,7 +5,7 @@ import pytest
 import warp as wp
 
 import warp_lamp as wl
-from warp_lamp.reference.wetted import dry_certificate
+from warp_lamp.reference.wetted import dry_certificate, witness_clearance
 from warp_lamp.scenes import scene_cavity_block, scene_overlapping_polydisperse
 from warp_lamp.wetted import WettedSurface, cross_list_capacity, exact_queue_capacity, skin_distance, unpack_bits
 
@@ -71,7 +71,7 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         skinned._cross_list(cross_list_capacity(skinned._faces, None))
         skinned._thin_list(4096)
         skinned._bits = 4
-    kept, witnessed, owned, opened = [], [], [], None
+    kept, witnessed, held, owned, opened = [], [], [], [], None
     for step in range(steps):
         if step in (6, 15):
             j = rng.integers(len(r))
@@ -87,6 +87,7 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         assert_same(state(skinned), state(fresh), step)
         kept.append(skinned.diagnostics().skin_kept)
         witnessed.append(skinned.diagnostics().skin_witnessed)
+        held.append(skinned.diagnostics().skin_held)
         owned.append(skinned.diagnostics().skin_cross_kept)
         if step == 12:
             opened = skinned.diagnostics()
@@ -96,6 +97,8 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
     # Witnesses survive a new reference: every update after the first keeps wet decisions (unless the table is
     # wiped, which it is not in so short a run).
     assert min(witnessed[1:]) > 0
+    # Most quiet steps hold most witnesses by their margins alone (none held at a new reference).
+    assert max(held) > 0.5 * max(witnessed) and all(h <= w for h, w in zip(held, witnessed, strict=True))
     # Crossing owners are kept between references, and only without walls.
     assert (max(owned) > 0) == (walls is None)
     return kept
@@ -141,6 +144,8 @@ def test_skin_keeps_decisions(device):
     assert second.skin_kept == first.skin_certified
     assert second.skin_certified == 0
     assert first.skin_witnessed == 0 and second.skin_witnessed > 0.9 * first.rescued
+    # At rest a witness is held by its margin unless some other ball comes within the skin of its candidate.
+    assert first.skin_held == 0 and second.skin_held > 0.7 * second.skin_witnessed
     crossings = 2 * sum(int(c.sum()) for c in second.crossings.values())
     assert first.skin_cross_kept == 0 and second.skin_cross_kept > 0.5 * crossings
     shifted, rad, _ = upload(scene.centers + H, scene.radii, grid, device)
@@ -262,3 +267,68 @@ def test_certificates_match_reference(device, scene_name):
     for ijk in sample:
         x = (ijk + 0.5) * h
         assert dry_certificate(x, c, r, rho, s.skin) == bool(kept[tuple(ijk)]), tuple(ijk)
+
+
+def voxel_of(v, shape):
+    """Voxel (i, j, k) of a witness table key (word * 32 + bit; words along x, rows (j, k))."""
+    nwx = -(-shape[0] // 32)
+    word, bit = divmod(int(v), 32)
+    row, w = divmod(word, nwx)
+    k, j = divmod(row, shape[1])
+    return np.array([32 * w + bit, j, k])
+
+
+def test_witness_margins_match_reference(device):
+    """Every stored witness margin equals a brute-force float64 clearance over all spheres (so the margin's walk
+    misses no sphere), its candidate lies on its own inflated spheres within rho of the voxel, and its corner is a
+    corner of the candidate's voxel-centre cube."""
+    scene, grid = cavity_scene()
+    s = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto")
+    pos, rad, _ = upload(scene.centers, scene.radii, grid, device)
+    s.update(pos, rad)
+    keys, wits, mg = s._wit_keys.numpy(), s._wits.numpy(), s._wit_margins.numpy()
+    used = np.flatnonzero((keys >= 0) & (wits[:, 0] >= 0) & (mg["corner"] >= 0))
+    assert len(used) > 0.8 * s.diagnostics().rescued
+    c = pos.numpy().astype(np.float64)
+    r = rad.numpy().astype(np.float64)
+    h = np.asarray(s.h, dtype=np.float64)
+    cap = 4.0 * s.skin
+    rng = np.random.default_rng(2)
+    for slot in rng.choice(used, 120, replace=False):
+        own = [q for q in wits[slot, :3] if q >= 0]
+        z = np.asarray(mg["z"][slot], dtype=np.float64)
+        x = (voxel_of(keys[slot], s.shape) + 0.5) * h
+        assert np.linalg.norm(x - z) <= RHO * (1 + 1e-9)
+        for q in own:
+            assert abs(np.linalg.norm(z - c[q]) - (r[q] + RHO)) < 1e-9
+        lo = np.asarray(mg["lo"][slot])
+        corner = int(mg["corner"][slot])
+        np.testing.assert_array_equal(lo, np.floor(z / h - 0.5).astype(int))
+        y = (lo + [(corner >> a) & 1 for a in range(3)] + 0.5) * h
+        assert mg["epoch"][slot] == 1
+        assert abs(mg["m"][slot] - witness_clearance(z, y, own, c, r, RHO, cap)) < 1e-9, slot
+
+
+def test_witness_margin_lie_is_caught(device):
+    """Margins that claim more clearance than measured, trusted over moves within the skin, make the skinned
+    surface differ from a from-scratch one: the bitwise comparison can catch a wrong margin."""
+    scene, grid = cavity_scene()
+    s = WettedSurface(grid, probe_radius=RHO, device=device, skin="auto")
+    fresh = WettedSurface(grid, probe_radius=RHO, device=device)
+    pos, rad, _ = upload(scene.centers, scene.radii, grid, device)
+    s.update(pos, rad)
+    mg = s._wit_margins.numpy()
+    mg["m"] = np.where(mg["corner"] >= 0, 1.0e3, mg["m"])  # the lie
+    s._wit_margins.assign(mg)
+    rng = np.random.default_rng(11)
+    differs = False
+    for _ in range(6):
+        step = rng.uniform(-0.9, 0.9, scene.centers.shape) * 0.5 * s.skin / np.sqrt(3.0)
+        moved, rad, _ = upload(scene.centers + step, scene.radii, grid, device)
+        s.update(moved, rad)
+        fresh.update(moved, rad)
+        assert not s.diagnostics().skin_reset
+        if not np.array_equal(s.fluid.numpy(), fresh.fluid.numpy()):
+            differs = True
+            break
+    assert differs

@@ -43,6 +43,7 @@ capture-safe; ``ShiningLamp(grid, surfaces="all", probe_radius=rho)`` and :func:
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
 
 import numpy as np
@@ -351,7 +352,9 @@ def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = Fal
     queue = 4 * (cap + 2) + (12 * lay["n_words"] if cap > 0 else 0)
     queue += 4 * KB.GATHER * queued_threads(cap, device)
     queue += 8 * cross_list_capacity(lay["faces"], device) + 12
-    kept = 4 * (lay["n_words"] + KB.N_SKIN) + 28 * witness_capacity(lay["n"]) if skin else 0
+    # Per table slot: a witness's key, (i, j, k, t) and margin (``WitMargin``), and a crossing's key and owner.
+    slot = 4 + 16 + ctypes.sizeof(KB.WitMargin.ctype) + 8
+    kept = 4 * (lay["n_words"] + KB.N_SKIN) + slot * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
 
@@ -379,8 +382,8 @@ def skin_distance(skin, h, probe_radius) -> float:
 
 def witness_capacity(shape) -> int:
     """Slots of the skin's witness table for a box of ``shape`` voxels: the power of two at or above one voxel in
-    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 20 bytes each (the crossings' owner table has as many
-    slots, 8 bytes each). (The specimen's 7,500 wet tests in 0.8 M
+    :data:`EXACT_QUEUE_PER`, at least :data:`WITNESS_MIN`; 76 bytes each: key, witness and margin (the crossings'
+    owner table has as many slots, 8 bytes each). (The specimen's 7,500 wet tests in 0.8 M
     voxels take a ninth of its 65,536; the table is wiped when three quarters are taken.)"""
     n_vox = int(np.prod(np.asarray(shape, dtype=np.int64)))
     return 1 << int(np.ceil(np.log2(max(WITNESS_MIN, n_vox // EXACT_QUEUE_PER))))
@@ -466,6 +469,8 @@ class WettedDiagnostics:
         skin_resets: With the skin, references taken since construction (the first update takes one).
         skin_witnessed: With the skin, voxels of ``rescued`` kept wet by re-checking the one candidate an earlier
             update found them wet by (the others were tested).
+        skin_held: With the skin, voxels of ``skin_witnessed`` kept by their witness's margin alone, without a search
+            (the candidate recomputed, its clearance from every other ball measured when it was found).
         skin_cross_kept: With the skin, crossings whose owner was kept without a search (none with walls).
         crossings_listed: Crossings loaded through the crossing list (CUDA), one thread each; the rest were loaded
             where they were found (all of them on the CPU, or past the list's capacity).
@@ -508,6 +513,7 @@ class WettedDiagnostics:
     skin_reset: bool = False
     skin_resets: int = 0
     skin_witnessed: int = 0
+    skin_held: int = 0
     skin_cross_kept: int = 0
     crossings_listed: int = 0
     thin_listed: int = 0
@@ -714,6 +720,7 @@ class WettedSurface:
         cap = witness_capacity(self.shape) if self.skin else 0
         self._wit_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
         self._wits = wp.zeros(cap, dtype=wp.vec4i, device=d)
+        self._wit_margins = wp.zeros(cap, dtype=KB.WitMargin, device=d)
         # Kept crossing owners by face (int32 key, int32 owner), as many slots as witnesses.
         self._cross_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
         self._cross_owners = wp.zeros(cap, dtype=wp.int32, device=d)
@@ -992,6 +999,7 @@ class WettedSurface:
                 self._skin_state,
                 self._wit_keys,
                 self._wits,
+                self._wit_margins,
             ],
             device=d,
         )
@@ -1022,6 +1030,7 @@ class WettedSurface:
                     self._skin_state,
                     self._wit_keys,
                     self._wits,
+                    self._wit_margins,
                 ],
                 device=d,
                 block_dim=SPARSE_BLOCK_DIM,
@@ -1199,6 +1208,7 @@ class WettedSurface:
             out.skin_reset = bool(st[KB.SKIN_RESET])
             out.skin_resets = int(st[KB.SKIN_RESETS])
             out.skin_witnessed = int(st[KB.SKIN_WITNESSED])
+            out.skin_held = int(st[KB.SKIN_HELD])
             out.skin_cross_kept = int(st[KB.SKIN_CROSS_KEPT])
         if self.owners.shape[0] > 0:
             own = self.owners.numpy()

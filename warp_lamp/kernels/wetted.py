@@ -47,6 +47,9 @@ from warp_lamp.kernels.wetted_base import (
     DIAG_THIN,
     DIAG_UNCERTAIN,
     GATHER,
+    KEEP_ABS,
+    KEEP_CAP,
+    KEEP_REL,
     MASK_SPHERES,
     REACH_POINTS,
     REACH_ROWS,
@@ -56,6 +59,7 @@ from warp_lamp.kernels.wetted_base import (
     SKIN_CROSS_KEPT,
     SKIN_CROSS_WIPE,
     SKIN_FILLED,
+    SKIN_HELD,
     SKIN_KEPT,
     SKIN_PRIMED,
     SKIN_RESET,
@@ -74,7 +78,9 @@ from warp_lamp.kernels.wetted_base import (
     NearList,
     ReachMasks,
     ReachPoints,
+    Vec8d,
     WetBox,
+    WitMargin,
     bin_head,
     bin_span,
     centre_offset,
@@ -1796,23 +1802,74 @@ def dry_certificate(
 
 
 @wp.func
-def witness_find(v: wp.int32, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i]) -> wp.vec4i:
-    """Voxel v's stored witness, or (-2, ...) when it has none."""
-    s = table_find(v, keys)
-    if s < 0:
-        return wp.vec4i(-2, -1, -1, 0)
-    return wits[s]
-
-
-@wp.func
 def witness_store(
     v: wp.int32, w: wp.vec4i, keys: wp.array[wp.int32], wits: wp.array[wp.vec4i], skin: wp.array[wp.int32]
-):
+) -> wp.int32:
     """Voxel v's witness w (or (-2, ...): none) into its slot, taking a free one when it has none (counted); a
-    full probe run drops it. Only the thread deciding v writes v's slot in an update."""
+    full probe run drops it. Only the thread deciding v writes v's slot in an update. Returns the slot (-1: none)."""
     s = table_claim(v, w[0] >= 0, keys, skin, SKIN_FILLED)
     if s >= 0:
         wits[s] = w
+    return s
+
+
+@wp.func
+def witness_point(
+    x: wp.vec3d,
+    wit: wp.vec4i,
+    n: wp.int32,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    box: WetBox,
+) -> wp.vec4d:
+    """The candidate an earlier update found x wet by (``probe_search``'s witness), recomputed from today's spheres
+    as the search computes it: (z, 1) when the search enumerates it today (its spheres exposed and near x, its
+    circle or triple not degenerate, z within rho of x), else (0, 0, 0, 0). The search prunes a sphere only when
+    another ball covers all its points within rho of x, and then this candidate would be blocked."""
+    none = wp.vec4d(0.0)
+    i = wit[0]
+    j = wit[1]
+    k = wit[2]
+    if i < 0 or i >= n or j >= n or k >= n or box.skip != 0:
+        return none
+    if exposed[i] == 0 or not gate_ok(x, i, positions, radii, box):
+        return none
+    rho = box.rho
+    rho2 = rho * rho
+    ci = centre_of(i, positions)
+    big_i = wp.float64(radii[i]) + rho
+    z = wp.vec3d(0.0)
+    if j < 0:
+        v = x - ci
+        d2 = dot3(v, v)
+        if not (d2 > wp.float64(0.0)):
+            return none
+        z = ci + v * (big_i / wp.sqrt(d2))
+    else:
+        if j <= i or exposed[j] == 0 or not gate_ok(x, j, positions, radii, box):
+            return none
+        cj = centre_of(j, positions)
+        big_j = wp.float64(radii[j]) + rho
+        cp = circle_point(x, ci, big_i, cj, big_j)
+        if cp[3] == wp.float64(0.0):
+            return none
+        z = wp.vec3d(cp[0], cp[1], cp[2])
+        if k >= 0:
+            e = x - z
+            if not (dot3(e, e) <= rho2 * (wp.float64(1.0) + SLACK)):
+                return none
+            if k <= j or exposed[k] == 0 or not gate_ok(x, k, positions, radii, box):
+                return none
+            vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
+            if vp[2, 0] == wp.float64(0.0):
+                return none
+            t = wit[3]
+            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
+    w = x - z
+    if not (dot3(w, w) <= rho2):
+        return none
+    return wp.vec4d(z[0], z[1], z[2], wp.float64(1.0))
 
 
 @wp.func
@@ -1830,53 +1887,238 @@ def witness_holds(
     box: WetBox,
     walls: LampWalls,
 ) -> wp.bool:
-    """The candidate an earlier update found x wet by (``probe_search``'s witness), recomputed from today's spheres
-    as the search computes it, is valid today. Then the search finds x wet too: its spheres are exposed and near x
-    (checked), so the search enumerates this candidate (it prunes a sphere only when another ball covers all its
-    points within rho of x, and then this one would be blocked), and it stops at a valid candidate."""
+    """The witness's candidate (``witness_point``) is valid today: then the search finds x wet too, since it
+    enumerates this candidate and stops at a valid one."""
+    zp = witness_point(x, wit, n, positions, radii, exposed, box)
+    if zp[3] == wp.float64(0.0):
+        return False
+    z = wp.vec3d(zp[0], zp[1], zp[2])
+    i = wit[0]
+    res = candidate_check(x, z, i, wit[1], wit[2], -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
+    return res == CANDIDATE_OK
+
+
+@wp.func
+def cube_corner(lo: wp.vec3i, corner: wp.int32) -> wp.vec3i:
+    return wp.vec3i(lo[0] + (corner & 1), lo[1] + ((corner >> 1) & 1), lo[2] + ((corner >> 2) & 1))
+
+
+@wp.func
+def lattice_point(ijk: wp.vec3i, box: WetBox) -> wp.vec3d:
+    return wp.vec3d(
+        (wp.float64(ijk[0]) + wp.float64(0.5)) * box.h[0],
+        (wp.float64(ijk[1]) + wp.float64(0.5)) * box.h[1],
+        (wp.float64(ijk[2]) + wp.float64(0.5)) * box.h[2],
+    )
+
+
+@wp.func
+def witness_margin(
+    x: wp.vec3d,
+    wit: wp.vec4i,
+    epoch: wp.int32,
+    skin_d: wp.float64,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> WitMargin:
+    """The valid witness ``wit`` of x measured (``WitMargin``): the clearance of every other inflated ball from its
+    candidate z and from z's segment to each reached corner of its cube that leaves the candidate's own balls
+    outward (``tangent_ok``), the best corner's kept. Every sphere whose ball comes within ``KEEP_CAP`` skins of z
+    or of a segment (each within the voxel diagonal of z) is walked; the rest are at least that far, the cap.
+    No margin (m = -1) for a cube clamped to the box's surroundings."""
+    out = WitMargin()
+    out.m = wp.float64(-1.0)
+    out.corner = -1
+    out.epoch = epoch
+    zp = witness_point(x, wit, n, positions, radii, exposed, box)
+    if zp[3] == wp.float64(0.0):
+        return out
+    z = wp.vec3d(zp[0], zp[1], zp[2])
+    out.z = z
+    lo, clamped = cube_corner_low(z, box)
+    out.lo = lo
+    if clamped != 0:
+        return out
     i = wit[0]
     j = wit[1]
     k = wit[2]
-    if i < 0 or i >= n or j >= n or k >= n or box.skip != 0:
+    cap = KEEP_CAP * skin_d
+    corners = reached_corners(lo, reach, box, walls)
+    usable = int(0)
+    seg = Vec8d()
+    for c in range(8):
+        seg[c] = cap
+        if ((corners >> c) & 1) != 0:
+            y = lattice_point(cube_corner(lo, c), box)
+            if tangent_ok(y, z, i, positions) and tangent_ok(y, z, j, positions) and tangent_ok(y, z, k, positions):
+                usable = usable | (1 << c)
+    if usable == 0:
+        return out
+    free = cap
+    span = bin_span(z, (rmax + box.rho + cap + box.diag) * (wp.float64(1.0) + SLACK), box)
+    for bz in range(span.lo[2], span.hi[2] + 1):
+        for by in range(span.lo[1], span.hi[1] + 1):
+            for bx in range(span.lo[0], span.hi[0] + 1):
+                q = bin_head(bx, by, bz, box, heads)
+                while q >= 0:
+                    if q != i and q != j and q != k:
+                        big = wp.float64(radii[q]) + box.rho
+                        cq = centre_of(q, positions)
+                        v = z - cq
+                        free = wp.min(free, wp.sqrt(dot3(v, v)) - big)
+                        for c in range(8):
+                            if ((usable >> c) & 1) != 0:
+                                y = lattice_point(cube_corner(lo, c), box)
+                                d = z - y
+                                dd = dot3(d, d)
+                                wq = cq - y
+                                s = wp.float64(0.0)
+                                if dd > wp.float64(0.0):
+                                    s = wp.clamp(dot3(wq, d) / dd, wp.float64(0.0), wp.float64(1.0))
+                                p = wq - d * s
+                                seg[c] = wp.min(seg[c], wp.sqrt(dot3(p, p)) - big)
+                    q = next_in_bin[q]
+    best = wp.float64(-1.0)
+    for c in range(8):
+        if ((usable >> c) & 1) != 0:
+            if out.corner < 0 or seg[c] > best:
+                best = seg[c]
+                out.corner = c
+    out.m = wp.min(free, best)
+    return out
+
+
+@wp.func
+def witness_held(
+    x: wp.vec3d,
+    wit: wp.vec4i,
+    mg: WitMargin,
+    epoch: wp.int32,
+    skin_d: wp.float64,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+) -> wp.bool:
+    """The witness is valid today by its margin alone, without a search: measured under this reference (every
+    sphere within half the skin of the reference then and now, so each has moved less than the skin since), its
+    candidate recomputed today (``witness_point``) in the same cube, its corner reached, its own balls left
+    outward, the walls allowing it, and the margin beyond the candidate's move plus the skin. Then every other
+    inflated ball keeps out of z and of the segment to the corner (each point of which moved no more than z), so
+    ``candidate_check`` finds z valid and the search finds x wet."""
+    if epoch < 0 or mg.epoch != epoch or mg.corner < 0 or not (mg.m > skin_d):
         return False
-    if exposed[i] == 0 or not gate_ok(x, i, positions, radii, box):
+    zp = witness_point(x, wit, n, positions, radii, exposed, box)
+    if zp[3] == wp.float64(0.0):
         return False
-    rho = box.rho
-    rho2 = rho * rho
-    ci = centre_of(i, positions)
-    big_i = wp.float64(radii[i]) + rho
-    z = wp.vec3d(0.0)
-    if j < 0:
-        v = x - ci
-        d2 = dot3(v, v)
-        if not (d2 > wp.float64(0.0)):
-            return False
-        z = ci + v * (big_i / wp.sqrt(d2))
-    else:
-        if j <= i or exposed[j] == 0 or not gate_ok(x, j, positions, radii, box):
-            return False
-        cj = centre_of(j, positions)
-        big_j = wp.float64(radii[j]) + rho
-        cp = circle_point(x, ci, big_i, cj, big_j)
-        if cp[3] == wp.float64(0.0):
-            return False
-        z = wp.vec3d(cp[0], cp[1], cp[2])
-        if k >= 0:
-            e = x - z
-            if not (dot3(e, e) <= rho2 * (wp.float64(1.0) + SLACK)):
-                return False
-            if k <= j or exposed[k] == 0 or not gate_ok(x, k, positions, radii, box):
-                return False
-            vp = vertex_points(ci, big_i, cj, big_j, centre_of(k, positions), wp.float64(radii[k]) + rho)
-            if vp[2, 0] == wp.float64(0.0):
-                return False
-            t = wit[3]
-            z = wp.vec3d(vp[t, 0], vp[t, 1], vp[t, 2])
-    w = x - z
-    if not (dot3(w, w) <= rho2):
+    z = wp.vec3d(zp[0], zp[1], zp[2])
+    lo, clamped = cube_corner_low(z, box)
+    if clamped != 0 or lo[0] != mg.lo[0] or lo[1] != mg.lo[1] or lo[2] != mg.lo[2]:
         return False
-    res = candidate_check(x, z, i, j, k, -1, rmax, positions, radii, heads, next_in_bin, reach, box, walls)
-    return res == CANDIDATE_OK
+    yi = cube_corner(lo, mg.corner)
+    if not reached_at(yi[0], yi[1], yi[2], reach, box, walls):
+        return False
+    y = lattice_point(yi, box)
+    if not (tangent_ok(y, z, wit[0], positions) and tangent_ok(y, z, wit[1], positions)):
+        return False
+    if not tangent_ok(y, z, wit[2], positions):
+        return False
+    if not walls_allow(z, wit[0], wit[1], wit[2], walls, box.rho):
+        return False
+    dz = z - mg.z
+    need = (wp.sqrt(dot3(dz, dz)) + skin_d) * (wp.float64(1.0) + KEEP_REL)
+    need = need + KEEP_ABS * (rmax + box.rho + box.diag)
+    return mg.m > need
+
+
+@wp.func
+def skin_epoch(skin: wp.array[wp.int32]) -> wp.int32:
+    """The reference a margin measured in this update belongs to: a new reference is taken after it (rebase)."""
+    return skin[SKIN_RESETS] + skin[SKIN_RESET]
+
+
+@wp.func
+def witness_recheck(
+    v: wp.int32,
+    x: wp.vec3d,
+    skin_d: wp.float64,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+    skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
+    margins: wp.array[WitMargin],
+) -> wp.int32:
+    """Voxel v's stored witness re-checked: 1 held by its margin (no search), 2 valid by its searches (its margin
+    then measured again, from today's spheres), 0 none or not valid (the voxel is tested)."""
+    s = table_find(v, keys)
+    if s < 0:
+        return 0
+    wit = wits[s]
+    if wit[0] < 0:
+        return 0
+    epoch = int(-1)
+    if skin[SKIN_RESET] == 0:
+        epoch = skin[SKIN_RESETS]
+    if witness_held(x, wit, margins[s], epoch, skin_d, n, rmax, positions, radii, exposed, reach, box, walls):
+        return 1
+    if witness_holds(x, wit, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        epoch = skin_epoch(skin)
+        margins[s] = witness_margin(
+            x, wit, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+        )
+        return 2
+    return 0
+
+
+@wp.func
+def witness_keep(
+    v: wp.int32,
+    x: wp.vec3d,
+    found: wp.vec4i,
+    skin_d: wp.float64,
+    n: wp.int32,
+    rmax: wp.float64,
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    exposed: wp.array[wp.int32],
+    reach: wp.array[wp.uint32],
+    box: WetBox,
+    walls: LampWalls,
+    skin: wp.array[wp.int32],
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
+    margins: wp.array[WitMargin],
+):
+    """The search's answer for voxel v into the witness table, a witness with its margin (``witness_margin``)."""
+    s = witness_store(v, found, keys, wits, skin)
+    if s >= 0 and found[0] >= 0:
+        epoch = skin_epoch(skin)
+        margins[s] = witness_margin(
+            x, found, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+        )
 
 
 @wp.kernel
@@ -1899,6 +2141,7 @@ def wet_skin_start(
     skin[SKIN_KEPT] = 0
     skin[SKIN_CERTIFIED] = 0
     skin[SKIN_WITNESSED] = 0
+    skin[SKIN_HELD] = 0
     skin[SKIN_WIPE] = 0
     if 4 * skin[SKIN_FILLED] > 3 * capacity or skin[SKIN_PRIMED] == 0:
         skin[SKIN_WIPE] = 1
@@ -2031,6 +2274,7 @@ def wet_classify(
     skin: wp.array[wp.int32],
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
+    margins: wp.array[WitMargin],
 ):
     """One thread per ``bits`` bits of a word (32 on the CPU; fewer on CUDA): every voxel of the band (within rho +
     diagonal of a reached voxel) that the dilation by rho left dry and that is not solid gets the exact test. With
@@ -2072,6 +2316,7 @@ def wet_classify(
     n_cert = int(0)
     wet = int(0)
     witnessed = int(0)
+    held = int(0)
     while unc != wp.uint32(0):
         b = lowest_bit(unc)
         unc = unc & (unc - wp.uint32(1))
@@ -2086,28 +2331,31 @@ def wet_classify(
             if slot < capacity:
                 queue[slot] = idx * 32 + b
                 continue
-        if skinned:
-            wit = witness_find(idx * 32 + b, keys, wits)
-            if wit[0] >= 0:
-                xw = voxel_point(wjk, b, box)
-                if witness_holds(
-                    xw, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-                ):
-                    add = add | (wp.uint32(1) << wp.uint32(b))
-                    wet += 1
-                    witnessed += 1
-                    continue
         x = voxel_point(wjk, b, box)
+        if skinned:
+            kept_by = witness_recheck(
+                idx * 32 + b, x, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach,
+                box, walls, skin, keys, wits, margins,
+            )  # fmt: skip
+            if kept_by != 0:
+                add = add | (wp.uint32(1) << wp.uint32(b))
+                wet += 1
+                witnessed += 1
+                if kept_by == 1:
+                    held += 1
+                continue
         found = probe_search(
             x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, GatherIds(), 0, 1
         )
+        if skinned:
+            witness_keep(
+                idx * 32 + b, x, found, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed,
+                reach, box, walls, skin, keys, wits, margins,
+            )  # fmt: skip
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
-            if skinned:
-                witness_store(idx * 32 + b, found, keys, wits, skin)
         elif skinned:
-            witness_store(idx * 32 + b, found, keys, wits, skin)
             if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
                 certified = certified | (wp.uint32(1) << wp.uint32(b))
                 n_cert += 1
@@ -2121,6 +2369,8 @@ def wet_classify(
         wp.atomic_add(skin, SKIN_CERTIFIED, n_cert)
     if witnessed > 0:
         wp.atomic_add(skin, SKIN_WITNESSED, witnessed)
+    if held > 0:
+        wp.atomic_add(skin, SKIN_HELD, held)
     wp.atomic_add(diag, DIAG_UNCERTAIN, tested)
     wp.atomic_add(diag, DIAG_RESCUED, wet)
 
@@ -2148,6 +2398,7 @@ def wet_classify_queued(
     skin: wp.array[wp.int32],
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
+    margins: wp.array[WitMargin],
 ):
     """The queued voxels' exact tests (``wet_classify``), packed into as few threads as fit the GPU at once, where
     ``wet_classify``'s threads are mostly idle: launched for ``scratch``'s rows (``GATHER`` int32 each, interleaved:
@@ -2176,20 +2427,25 @@ def wet_classify_queued(
         wjk = word_coords(box, idx)
         x = voxel_point(wjk, b, box)
         if kept.shape[0] > 0:
-            wit = witness_find(v, keys, wits)
-            if wit[0] >= 0:
-                if witness_holds(
-                    x, wit, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-                ):
-                    wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
-                    wp.atomic_add(diag, DIAG_RESCUED, 1)
-                    wp.atomic_add(skin, SKIN_WITNESSED, 1)
-                    continue
+            kept_by = witness_recheck(
+                v, x, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls,
+                skin, keys, wits, margins,
+            )  # fmt: skip
+            if kept_by != 0:
+                wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
+                wp.atomic_add(diag, DIAG_RESCUED, 1)
+                wp.atomic_add(skin, SKIN_WITNESSED, 1)
+                if kept_by == 1:
+                    wp.atomic_add(skin, SKIN_HELD, 1)
+                continue
         found = probe_search(
             x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, scratch, t, rows
         )
         if kept.shape[0] > 0:
-            witness_store(v, found, keys, wits, skin)
+            witness_keep(
+                v, x, found, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box,
+                walls, skin, keys, wits, margins,
+            )  # fmt: skip
         if found[0] != -2:
             wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
             wp.atomic_add(diag, DIAG_RESCUED, 1)

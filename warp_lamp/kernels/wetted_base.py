@@ -67,6 +67,8 @@ CONDITIONED = wp.constant(wp.float64(1.0e-3))
 #: Spheres the skin's dry certificate lists around a voxel; with more it certifies nothing (the voxel is tested).
 CERT_LIST = 48
 CertIds = wp.types.vector(length=CERT_LIST, dtype=wp.int32)
+#: A witness's segment clearance per corner of its cube.
+Vec8d = wp.types.vector(length=8, dtype=wp.float64)
 #: The skin's state (``WettedSurface._skin_state``, int32): reset in this update (1) or not, primed (a reference
 #: taken), dry decisions kept and certified in this update, resets since construction ...
 SKIN_RESET = wp.constant(0)
@@ -86,7 +88,9 @@ SKIN_COUNT = wp.constant(8)
 SKIN_CROSS_KEPT = wp.constant(9)
 SKIN_CROSS_FILLED = wp.constant(10)
 SKIN_CROSS_WIPE = wp.constant(11)
-N_SKIN = 12
+#: Voxels kept wet by their witness's margin alone, without a search (a subset of ``SKIN_WITNESSED``).
+SKIN_HELD = wp.constant(12)
+N_SKIN = 13
 #: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
 WITNESS_PROBES = wp.constant(16)
 #: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
@@ -98,6 +102,13 @@ CERT_NEAR = wp.constant(wp.float64(1.0e-6))
 CERT_TINY = wp.constant(wp.float64(1.0e-12))
 #: Relative slack of the pruning tests below: they may only drop what exact arithmetic rules out with room to spare.
 SLACK = wp.constant(wp.float64(1.0e-9))
+#: A witness's margin is trusted only beyond the distance it must cover (the candidate's own move plus the skin)
+#: by this fraction of it and KEEP_ABS of the search's length scale (r_max + rho + diagonal): both dwarf float64
+#: rounding in the distances compared.
+KEEP_REL = wp.constant(wp.float64(1.0e-6))
+KEEP_ABS = wp.constant(wp.float64(1.0e-9))
+#: A witness's margin is measured out to this many skins (its search reaches no farther).
+KEEP_CAP = wp.constant(wp.float64(4.0))
 #: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
 RUN_FAR = wp.constant(1 << 28)
 #: Wall w among a candidate's defining spheres (sphere indices are >= 0, -1 is none): ``WALL_TAG - w``.
@@ -130,6 +141,22 @@ class WetBox:
     offset: wp.vec3i  # first ray of each lamp grid in the per-ray arrays
     face_offset: wp.vec3i  # first face of each lamp grid in the optional per-face owner array
     pad: wp.int32  # wall runs along x are exact from -pad to n_x - 1 + pad (past every index a kernel asks about)
+
+
+@wp.struct
+class WitMargin:
+    """A wet voxel's witness measured for the skin: how far every other sphere keeps from its candidate.
+
+    ``z`` is the candidate probe centre [frame m] when measured; ``m`` [m] the least clearance, over every sphere
+    but the candidate's own (by index), of its inflated ball from z and from the segment z to corner ``corner``
+    (``dx + 2 dy + 4 dz``) of the voxel-centre cube at ``lo``, capped (-1: none measured); ``epoch`` the skin's
+    reference it was measured under (``SKIN_RESETS`` after that update)."""
+
+    z: wp.vec3d
+    m: wp.float64
+    lo: wp.vec3i
+    corner: wp.int32
+    epoch: wp.int32
 
 
 @wp.func

@@ -53,6 +53,7 @@ __all__ = [
     "frame_walls",
     "voxel_diagonal",
     "wetted_reference",
+    "witness_clearance",
 ]
 
 #: Unit roundoff of float32.
@@ -1097,3 +1098,34 @@ def dry_certificate(x, centers, radii, rho: float, shrink: float) -> bool:
                     if _dot(x - z, x - z) <= thr2 and not covered(z, (a, b, k)):
                         return False
     return True
+
+
+def witness_clearance(z, y, own, centers, radii, rho: float, cap: float) -> float:
+    """The skin's margin of a wet voxel's witness [m], by brute force over every sphere: the least distance by which
+    the inflated balls (radius ``r + rho``) of all spheres but the candidate's own keep out of the probe centre z
+    and of the segment from z to the lattice point y, at most ``cap``.
+
+    Args:
+        z: The candidate probe centre, 3 values [m] (frame coordinates).
+        y: The reached lattice point (a corner of z's voxel-centre cube), 3 values [m].
+        own: Indices of the spheres z lies on (1 to 3; the others' balls are measured).
+        centers: Sphere centres, shape (N, 3) [m].
+        radii: Radii, shape (N,) [m].
+        rho: Probe radius [m].
+        cap: The largest margin reported [m].
+    """
+    z = np.asarray(z, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    c = np.asarray(centers, dtype=np.float64)
+    big = np.asarray(radii, dtype=np.float64) + rho
+    others = np.ones(len(c), dtype=bool)
+    others[[int(i) for i in own]] = False
+    c, big = c[others], big[others]
+    if len(c) == 0:
+        return float(cap)
+    point = np.linalg.norm(c - z, axis=1) - big
+    d = z - y
+    dd = float(d @ d)
+    s = np.clip(((c - y) @ d) / dd, 0.0, 1.0) if dd > 0.0 else np.zeros(len(c))
+    segment = np.linalg.norm(c - y - s[:, None] * d, axis=1) - big
+    return float(min(cap, point.min(), segment.min()))

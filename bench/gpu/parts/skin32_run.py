@@ -4,6 +4,8 @@
 re-check holds (``WettedSurface(skin=...)``); "tested" the voxels that got the full exact test; "owners" the
 crossings whose nearest sphere was kept without a search.
 
+"Held": wet voxels kept by their witness's margin alone, without a search (a part of "witnessed").
+
 Per scene (the SphereTest specimen and the slot block at 4 cells per diameter, rho = one mean radius):
 
 1. Stage table from scratch (graphs that stop after each stage, static positions), as bench/experiments/wetted_bench.py.
@@ -62,6 +64,7 @@ def answer(surf):
     skin = {
         "kept": int(st[KB.SKIN_KEPT]),
         "witnessed": int(st[KB.SKIN_WITNESSED]),
+        "held": int(st[KB.SKIN_HELD]),
         "cross_kept": int(st[KB.SKIN_CROSS_KEPT]),
         "certified": int(st[KB.SKIN_CERTIFIED]),
         "reset": bool(st[KB.SKIN_RESET]),
@@ -103,6 +106,7 @@ def bench_scene(name, scene, device, args):
     rest = skin.diagnostics()
     row["skin_rest_kept"] = rest.skin_kept
     row["skin_rest_witnessed"] = rest.skin_witnessed
+    row["skin_rest_held"] = rest.skin_held
     row["skin_rest_cross_kept"] = rest.skin_cross_kept
     row["crossings"] = 2 * sum(int(c.sum()) for c in rest.crossings.values())
     # Every update a reset: one particle 0.75 skin away and back.
@@ -159,6 +163,7 @@ def bench_scene(name, scene, device, args):
                 "scratch_s": tf,
                 "kept": ds["kept"],
                 "witnessed": ds["witnessed"],
+                "held": ds["held"],
                 "cross_kept": ds["cross_kept"],
                 "tested": uncertain - ds["kept"] - ds["witnessed"],
                 "certified": ds["certified"],
@@ -184,6 +189,7 @@ def bench_scene(name, scene, device, args):
         "skin_quiet_median_s": float(np.median(ts[quiet])) if quiet.any() else None,
         "kept_fraction_mean": float((kept / np.maximum(kept + tested, 1)).mean()),
         "cross_kept_mean": float(np.mean([s["cross_kept"] for s in steps])),
+        "held_mean": float(np.mean([s["held"] for s in steps])),
         "per_step": steps,
     }
     row["seconds"] = time.perf_counter() - t0
@@ -212,7 +218,7 @@ def table(result) -> str:
             )
     lines += [
         "",
-        "| scene | tested | wet | certified | kept dry / wet / owners at rest (crossings) | reset update ms | DEM "
+        "| scene | tested | wet | certified | kept dry / wet (held) / owners at rest (crossings) | reset update ms | DEM "
         "steps | mismatching | resets | kept frac | skin median ms | skin quiet median | scratch median ms |",
         "| --- " * 13 + "|",
     ]
@@ -221,7 +227,8 @@ def table(result) -> str:
         quiet = m["skin_quiet_median_s"]
         lines.append(
             f"| {r['scene'][:24]} | {r['tested']} | {r['wet']} | {r['certified']} | "
-            f"{r['skin_rest_kept']} / {r['skin_rest_witnessed']} / {r['skin_rest_cross_kept']} ({r['crossings']}) | "
+            f"{r['skin_rest_kept']} / {r['skin_rest_witnessed']} ({r.get('skin_rest_held', '-')}) / "
+            f"{r['skin_rest_cross_kept']} ({r['crossings']}) | "
             f"{r['skin_reset_update_s'] * 1e3:.3f} | {m['steps']} | {m['mismatching_steps']} | {m['resets']} | "
             f"{m['kept_fraction_mean']:.3f} | {m['skin_median_s'] * 1e3:.3f} | "
             f"{'-' if quiet is None else f'{quiet * 1e3:.3f}'} | {m['scratch_median_s'] * 1e3:.3f} |"
