@@ -68,6 +68,7 @@ def main() -> int:
                 "differ": int(np.count_nonzero((a != b).any(axis=1))),
                 "kept": int(d.skin_kept),
                 "witnessed": int(d.skin_witnessed),
+                "held": int(getattr(d, "skin_held", 0)),
                 "cross_kept": int(d.skin_cross_kept),
                 "reset": int(d.skin_reset),
                 "uncertain": int(d.uncertain),
