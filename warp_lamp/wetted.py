@@ -354,7 +354,7 @@ def _nbytes(lay: dict, keep_owners: bool, n_walls: int, device, skin: bool = Fal
     queue += 8 * cross_list_capacity(lay["faces"], device) + 12
     # Per table slot: a witness's key, (i, j, k, t) and margin (``WitMargin``), and a crossing's key and owner.
     slot = 4 + 16 + ctypes.sizeof(KB.WitMargin.ctype) + 8
-    kept = 4 * (lay["n_words"] + KB.N_SKIN) + slot * witness_capacity(lay["n"]) if skin else 0
+    kept = 4 * (2 * lay["n_words"] + KB.N_SKIN) + slot * witness_capacity(lay["n"]) if skin else 0
     return lay["nbytes"] + (8 * sum(lay["faces"]) if keep_owners else 0) + BYTES_PER_WALL * n_walls + queue + kept
 
 
@@ -716,6 +716,9 @@ class WettedSurface:
         self._no_active = wp.empty(0, dtype=wp.int32, device=d)
         # The skin: certified dry voxels, its state (kernels/wetted_base.py SKIN_*) and the reference particles.
         self.kept = wp.zeros(nw if self.skin else 0, dtype=wp.uint32, device=d)
+        # Dry voxels whose certificate failed under this reference: not tried again until the next one (on a GPU
+        # a failed attempt costs about a test, and at rest it fails again).
+        self._tried = wp.zeros(nw if self.skin else 0, dtype=wp.uint32, device=d)
         self._skin_state = wp.zeros(KB.N_SKIN if self.skin else 0, dtype=wp.int32, device=d)
         cap = witness_capacity(self.shape) if self.skin else 0
         self._wit_keys = wp.full(cap, -1, dtype=wp.int32, device=d)
@@ -944,7 +947,7 @@ class WettedSurface:
                 K.wet_skin_clear,
                 dim=max(nw, cap),
                 inputs=[self._skin_state],
-                outputs=[self.kept, self._wit_keys, self._cross_keys],
+                outputs=[self.kept, self._tried, self._wit_keys, self._cross_keys],
                 device=d,
             )
         if n > 0:
@@ -996,6 +999,7 @@ class WettedSurface:
                 self.queue,
                 self.queued,
                 self.kept,
+                self._tried,
                 self._skin_state,
                 self._wit_keys,
                 self._wits,
@@ -1027,6 +1031,7 @@ class WettedSurface:
                     self.fluid,
                     self.diag,
                     self.kept,
+                    self._tried,
                     self._skin_state,
                     self._wit_keys,
                     self._wits,

@@ -2070,7 +2070,8 @@ def witness_recheck(
     margins: wp.array[WitMargin],
 ) -> wp.int32:
     """Voxel v's stored witness re-checked: 1 held by its margin (no search), 2 valid by its searches (its margin
-    then measured again, from today's spheres), 0 none or not valid (the voxel is tested)."""
+    then measured again from today's spheres, unless it was measured under this reference and was too tight to hold
+    anyway), 0 none or not valid (the voxel is tested)."""
     s = table_find(v, keys)
     if s < 0:
         return 0
@@ -2083,6 +2084,10 @@ def witness_recheck(
     if witness_held(x, wit, margins[s], epoch, skin_d, n, rmax, positions, radii, exposed, reach, box, walls):
         return 1
     if witness_holds(x, wit, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
+        mg = margins[s]
+        if mg.epoch == epoch and not (mg.m > skin_d):
+            # Too tight under this reference when measured: measuring it again would not hold it.
+            return 2
         epoch = skin_epoch(skin)
         margins[s] = witness_margin(
             x, wit, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
@@ -2196,16 +2201,19 @@ def wet_skin_clear(
     skin: wp.array[wp.int32],
     # outputs
     kept: wp.array[wp.uint32],
+    tried: wp.array[wp.uint32],
     keys: wp.array[wp.int32],
     cross_keys: wp.array[wp.int32],
 ):
-    """One thread per word and per table slot: a new reference drops every kept dry decision and every kept
-    crossing owner (their margins were measured from the old one); a wipe, every witness (or owner)."""
+    """One thread per word and per table slot: a new reference drops every kept dry decision, every failed
+    certificate's mark and every kept crossing owner (their margins were measured from the old one); a wipe, every
+    witness (or owner)."""
     t = wp.tid()
     reset = skin[SKIN_RESET] != 0
     if t < kept.shape[0]:
         if reset:
             kept[t] = wp.uint32(0)
+            tried[t] = wp.uint32(0)
     if t < keys.shape[0]:
         if skin[SKIN_WIPE] != 0:
             keys[t] = -1
@@ -2271,6 +2279,7 @@ def wet_classify(
     queue: wp.array[wp.int32],
     queued: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
+    tried: wp.array[wp.uint32],
     skin: wp.array[wp.int32],
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
@@ -2356,9 +2365,12 @@ def wet_classify(
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
         elif skinned:
-            if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
-                certified = certified | (wp.uint32(1) << wp.uint32(b))
-                n_cert += 1
+            if ((tried[idx] >> wp.uint32(b)) & wp.uint32(1)) == wp.uint32(0):
+                if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+                    certified = certified | (wp.uint32(1) << wp.uint32(b))
+                    n_cert += 1
+                else:
+                    wp.atomic_or(tried, idx, wp.uint32(1) << wp.uint32(b))
     if add != wp.uint32(0):
         if bits == 32:
             fluid[idx] = fluid[idx] | add
@@ -2395,6 +2407,7 @@ def wet_classify_queued(
     fluid: wp.array[wp.uint32],
     diag: wp.array[wp.int32],
     kept: wp.array[wp.uint32],
+    tried: wp.array[wp.uint32],
     skin: wp.array[wp.int32],
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
@@ -2450,9 +2463,13 @@ def wet_classify_queued(
             wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
             wp.atomic_add(diag, DIAG_RESCUED, 1)
         elif kept.shape[0] > 0:
-            if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
-                wp.atomic_or(kept, idx, wp.uint32(1) << wp.uint32(b))
-                wp.atomic_add(skin, SKIN_CERTIFIED, 1)
+            bit = wp.uint32(1) << wp.uint32(b)
+            if (tried[idx] & bit) == wp.uint32(0):
+                if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
+                    wp.atomic_or(kept, idx, bit)
+                    wp.atomic_add(skin, SKIN_CERTIFIED, 1)
+                else:
+                    wp.atomic_or(tried, idx, bit)
 
 
 @wp.func
