@@ -71,7 +71,7 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         skinned._cross_list(cross_list_capacity(skinned._faces, None))
         skinned._thin_list(4096)
         skinned._bits = 4
-    kept, witnessed, held, owned, opened = [], [], [], [], None
+    kept, witnessed, held, owned, resets, certified, opened = [], [], [], [], [], [], None
     for step in range(steps):
         if step in (6, 15):
             j = rng.integers(len(r))
@@ -88,6 +88,8 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
         kept.append(skinned.diagnostics().skin_kept)
         witnessed.append(skinned.diagnostics().skin_witnessed)
         held.append(skinned.diagnostics().skin_held)
+        resets.append(skinned.diagnostics().skin_reset)
+        certified.append(skinned.diagnostics().skin_certified)
         owned.append(skinned.diagnostics().skin_cross_kept)
         if step == 12:
             opened = skinned.diagnostics()
@@ -95,8 +97,11 @@ def dem_run(device, *, walls=None, steps=24, seed=3, jiggle=1.5e-3, packed=False
     ijk = np.floor(grid.to_frame(scene.cut["center"][None])[0] / H).astype(int)
     assert fluid[tuple(ijk)], "the cavity was opened"
     # Witnesses survive a new reference: every update after the first keeps wet decisions (unless the table is
-    # wiped, which it is not in so short a run).
-    assert min(witnessed[1:]) > 0
+    # wiped, which it is not in so short a run), except a new reference right after another, which runs as from
+    # scratch (nothing re-checked, certified or measured).
+    streak = [r and last for r, last in zip(resets[1:], resets[:-1], strict=True)]
+    assert all(w > 0 for w, st in zip(witnessed[1:], streak, strict=True) if not st)
+    assert all(w == 0 and c == 0 for w, c, st in zip(witnessed[1:], certified[1:], streak, strict=True) if st)
     # Most quiet steps hold most witnesses by their margins alone (none held at a new reference).
     assert max(held) > 0.5 * max(witnessed) and all(h <= w for h, w in zip(held, witnessed, strict=True))
     # Crossing owners are kept between references, and only without walls.

@@ -590,11 +590,14 @@ class WettedSurface:
                 sphere moves the skin distance; later updates keep it untested until a particle has moved half the
                 skin from the reference (or changed its radius or activity, or the particle count changed), when
                 every kept dry decision is dropped and a new reference taken. A voxel found wet keeps the candidate
-                that made it wet, which later updates re-check alone before testing it. Without walls, a crossing
-                whose nearest sphere leads the runner-up by more than twice the skin keeps it as its owner until
-                the next reference. Results are bitwise those without it; it pays in a run of small moves (one more
-                bitmap, witness and owner tables of :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE`
-                per particle).
+                that made it wet and how far every other sphere kept from it; under the same reference it stays wet
+                by that margin alone while the margin exceeds the candidate's move plus the skin, else the candidate
+                is re-checked before the voxel is tested. Without walls, a crossing whose nearest sphere leads the
+                runner-up by more than twice the skin keeps it as its owner until the next reference. A new
+                reference right after another (particles outrunning the skin every update) keeps and measures
+                nothing. Results are bitwise those without it; it pays in a run of small moves (two more bitmaps,
+                witness and owner tables of :func:`witness_capacity` slots, :data:`SKIN_BYTES_PER_PARTICLE` per
+                particle).
         """
         self.probe_radius = check_probe_radius(probe_radius)
         if isinstance(walls, np.ndarray) and walls.ndim == 2 and walls.shape[1] == 4:

@@ -61,6 +61,7 @@ from warp_lamp.kernels.wetted_base import (
     SKIN_FILLED,
     SKIN_HELD,
     SKIN_KEPT,
+    SKIN_LAST,
     SKIN_PRIMED,
     SKIN_RESET,
     SKIN_RESETS,
@@ -2044,6 +2045,14 @@ def witness_held(
 
 
 @wp.func
+def skin_measures(skin: wp.array[wp.int32]) -> wp.bool:
+    """This update re-checks witnesses, certifies dry voxels and measures margins: it keeps its reference, or the
+    update before it did. Two new references in a row mean particles outrun the skin every update; what this one
+    measured would be dropped by the next, so it runs as from scratch."""
+    return skin[SKIN_RESET] == 0 or skin[SKIN_LAST] == 0
+
+
+@wp.func
 def skin_epoch(skin: wp.array[wp.int32]) -> wp.int32:
     """The reference a margin measured in this update belongs to: a new reference is taken after it (rebase)."""
     return skin[SKIN_RESETS] + skin[SKIN_RESET]
@@ -2121,9 +2130,16 @@ def witness_keep(
     s = witness_store(v, found, keys, wits, skin)
     if s >= 0 and found[0] >= 0:
         epoch = skin_epoch(skin)
-        margins[s] = witness_margin(
-            x, found, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-        )
+        if skin_measures(skin):
+            margins[s] = witness_margin(
+                x, found, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
+            )
+        else:
+            none = WitMargin()
+            none.m = wp.float64(-1.0)
+            none.corner = -1
+            none.epoch = -1
+            margins[s] = none
 
 
 @wp.kernel
@@ -2142,6 +2158,7 @@ def wet_skin_start(
     if skin[SKIN_PRIMED] == 0 or skin[SKIN_COUNT] != n:
         reset = 1
     skin[SKIN_COUNT] = n
+    skin[SKIN_LAST] = skin[SKIN_RESET]
     skin[SKIN_RESET] = reset
     skin[SKIN_KEPT] = 0
     skin[SKIN_CERTIFIED] = 0
@@ -2341,7 +2358,7 @@ def wet_classify(
                 queue[slot] = idx * 32 + b
                 continue
         x = voxel_point(wjk, b, box)
-        if skinned:
+        if skinned and skin_measures(skin):
             kept_by = witness_recheck(
                 idx * 32 + b, x, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach,
                 box, walls, skin, keys, wits, margins,
@@ -2364,7 +2381,7 @@ def wet_classify(
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
-        elif skinned:
+        elif skinned and skin_measures(skin):
             if ((tried[idx] >> wp.uint32(b)) & wp.uint32(1)) == wp.uint32(0):
                 if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):
                     certified = certified | (wp.uint32(1) << wp.uint32(b))
@@ -2439,7 +2456,7 @@ def wet_classify_queued(
         b = v - idx * 32
         wjk = word_coords(box, idx)
         x = voxel_point(wjk, b, box)
-        if kept.shape[0] > 0:
+        if kept.shape[0] > 0 and skin_measures(skin):
             kept_by = witness_recheck(
                 v, x, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls,
                 skin, keys, wits, margins,
@@ -2462,7 +2479,7 @@ def wet_classify_queued(
         if found[0] != -2:
             wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
             wp.atomic_add(diag, DIAG_RESCUED, 1)
-        elif kept.shape[0] > 0:
+        elif kept.shape[0] > 0 and skin_measures(skin):
             bit = wp.uint32(1) << wp.uint32(b)
             if (tried[idx] & bit) == wp.uint32(0):
                 if dry_certificate(x, shrink, r_max, positions, radii, heads, next_in_bin, box):

@@ -90,7 +90,10 @@ SKIN_CROSS_FILLED = wp.constant(10)
 SKIN_CROSS_WIPE = wp.constant(11)
 #: Voxels kept wet by their witness's margin alone, without a search (a subset of ``SKIN_WITNESSED``).
 SKIN_HELD = wp.constant(12)
-N_SKIN = 13
+#: Whether the update before this one took a new reference: two in a row (particles outrunning the skin every update,
+#: as chips do in a cut) and this one keeps, certifies and measures nothing, running as from scratch.
+SKIN_LAST = wp.constant(13)
+N_SKIN = 14
 #: Slots a witness key is looked for or placed in (open addressing, linear probing) before giving up.
 WITNESS_PROBES = wp.constant(16)
 #: The certificate's rounding allowances (relative, on squared lengths): a covering ball must hold a point by this
