@@ -1045,6 +1045,28 @@ class WettedSurface:
             )
         if self.skin:
             wp.launch(
+                K.wet_skin_margins,
+                dim=self._wit_keys.shape[0],
+                inputs=[
+                    positions,
+                    radii,
+                    box,
+                    walls,
+                    self.reach,
+                    self.heads,
+                    self.next_in_bin,
+                    self.rmax,
+                    self.exposed,
+                    self.skin,
+                    n,
+                    self._wit_keys,
+                    self._wits,
+                    self._skin_state,
+                ],
+                outputs=[self._wit_margins],
+                device=d,
+            )
+            wp.launch(
                 K.wet_skin_rebase,
                 dim=max(n, 1),
                 inputs=[positions, radii, active, n],

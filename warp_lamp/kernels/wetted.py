@@ -50,6 +50,7 @@ from warp_lamp.kernels.wetted_base import (
     KEEP_ABS,
     KEEP_CAP,
     KEEP_REL,
+    MARGIN_PENDING,
     MASK_SPHERES,
     REACH_POINTS,
     REACH_ROWS,
@@ -2094,13 +2095,11 @@ def witness_recheck(
         return 1
     if witness_holds(x, wit, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls):
         mg = margins[s]
-        if mg.epoch == epoch and not (mg.m > skin_d):
-            # Too tight under this reference when measured: measuring it again would not hold it.
-            return 2
-        epoch = skin_epoch(skin)
-        margins[s] = witness_margin(
-            x, wit, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-        )
+        # Measured again (``wet_skin_margins``) unless it was measured under this reference and was too tight
+        # then: it could not hold.
+        if mg.epoch != epoch or mg.m > skin_d:
+            mg.epoch = MARGIN_PENDING
+            margins[s] = mg
         return 2
     return 0
 
@@ -2108,38 +2107,23 @@ def witness_recheck(
 @wp.func
 def witness_keep(
     v: wp.int32,
-    x: wp.vec3d,
     found: wp.vec4i,
-    skin_d: wp.float64,
-    n: wp.int32,
-    rmax: wp.float64,
-    positions: wp.array[wp.vec3],
-    radii: wp.array[wp.float32],
-    heads: wp.array[wp.int32],
-    next_in_bin: wp.array[wp.int32],
-    exposed: wp.array[wp.int32],
-    reach: wp.array[wp.uint32],
-    box: WetBox,
-    walls: LampWalls,
     skin: wp.array[wp.int32],
     keys: wp.array[wp.int32],
     wits: wp.array[wp.vec4i],
     margins: wp.array[WitMargin],
 ):
-    """The search's answer for voxel v into the witness table, a witness with its margin (``witness_margin``)."""
+    """The search's answer for voxel v into the witness table; a witness's margin is left to measure
+    (``wet_skin_margins``) when this update measures, else marked as none."""
     s = witness_store(v, found, keys, wits, skin)
     if s >= 0 and found[0] >= 0:
-        epoch = skin_epoch(skin)
+        mg = WitMargin()
+        mg.m = wp.float64(-1.0)
+        mg.corner = -1
+        mg.epoch = -1
         if skin_measures(skin):
-            margins[s] = witness_margin(
-                x, found, epoch, skin_d, n, rmax, positions, radii, heads, next_in_bin, exposed, reach, box, walls
-            )
-        else:
-            none = WitMargin()
-            none.m = wp.float64(-1.0)
-            none.corner = -1
-            none.epoch = -1
-            margins[s] = none
+            mg.epoch = MARGIN_PENDING
+        margins[s] = mg
 
 
 @wp.kernel
@@ -2272,6 +2256,48 @@ def wet_skin_rebase(
 
 
 @wp.kernel
+def wet_skin_margins(
+    positions: wp.array[wp.vec3],
+    radii: wp.array[wp.float32],
+    box: WetBox,
+    walls: LampWalls,
+    reach: wp.array[wp.uint32],
+    heads: wp.array[wp.int32],
+    next_in_bin: wp.array[wp.int32],
+    rmax: wp.array[wp.float32],
+    exposed: wp.array[wp.int32],
+    skin_d: wp.float64,
+    n_particles: wp.int32,
+    keys: wp.array[wp.int32],
+    wits: wp.array[wp.vec4i],
+    skin: wp.array[wp.int32],
+    # outputs
+    margins: wp.array[WitMargin],
+):
+    """One thread per witness table slot, after the classification: a witness that this update stored or re-checked
+    by its walk (``MARGIN_PENDING``) gets its margin (``witness_margin``). Apart from the tests, so that their kernels
+    carry none of its code: the classification from scratch is as fast with the skin's code as without it."""
+    s = wp.tid()
+    if margins[s].epoch != MARGIN_PENDING:
+        return
+    v = keys[s]
+    wit = wits[s]
+    if v < 0 or wit[0] < 0:
+        none = WitMargin()
+        none.m = wp.float64(-1.0)
+        none.corner = -1
+        none.epoch = -1
+        margins[s] = none
+        return
+    idx = v / 32
+    x = voxel_point(word_coords(box, idx), v - idx * 32, box)
+    margins[s] = witness_margin(
+        x, wit, skin_epoch(skin), skin_d, n_particles, wp.float64(rmax[0]), positions, radii, heads, next_in_bin,
+        exposed, reach, box, walls,
+    )  # fmt: skip
+
+
+@wp.kernel
 def wet_classify(
     positions: wp.array[wp.vec3],
     radii: wp.array[wp.float32],
@@ -2374,10 +2400,7 @@ def wet_classify(
             x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, GatherIds(), 0, 1
         )
         if skinned:
-            witness_keep(
-                idx * 32 + b, x, found, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed,
-                reach, box, walls, skin, keys, wits, margins,
-            )  # fmt: skip
+            witness_keep(idx * 32 + b, found, skin, keys, wits, margins)
         if found[0] != -2:
             add = add | (wp.uint32(1) << wp.uint32(b))
             wet += 1
@@ -2472,10 +2495,7 @@ def wet_classify_queued(
             x, 1, r_max, positions, radii, heads, next_in_bin, exposed, reach, box, walls, scratch, t, rows
         )
         if kept.shape[0] > 0:
-            witness_keep(
-                v, x, found, shrink, n_particles, r_max, positions, radii, heads, next_in_bin, exposed, reach, box,
-                walls, skin, keys, wits, margins,
-            )  # fmt: skip
+            witness_keep(v, found, skin, keys, wits, margins)
         if found[0] != -2:
             wp.atomic_or(fluid, idx, wp.uint32(1) << wp.uint32(b))
             wp.atomic_add(diag, DIAG_RESCUED, 1)

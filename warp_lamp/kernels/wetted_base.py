@@ -112,6 +112,8 @@ KEEP_REL = wp.constant(wp.float64(1.0e-6))
 KEEP_ABS = wp.constant(wp.float64(1.0e-9))
 #: A witness's margin is measured out to this many skins (its search reaches no farther).
 KEEP_CAP = wp.constant(wp.float64(4.0))
+#: ``WitMargin.epoch`` of a witness whose margin this update measures (``wet_skin_margins``); -1: none.
+MARGIN_PENDING = wp.constant(-2)
 #: Beyond any voxel index a kernel asks about: the end of a wall run that is open on that side.
 RUN_FAR = wp.constant(1 << 28)
 #: Wall w among a candidate's defining spheres (sphere indices are >= 0, -1 is none): ``WALL_TAG - w``.
