@@ -259,7 +259,9 @@ class RockCutting(dem.BlockRunner):
         """The ShiningLamp keywords of this mode and base."""
         opts = {"lamps": "all" if self.base in ("clamped", "wall") else LAMPS_NO_BASE}
         if self.surfaces == "all":
-            opts.update(surfaces="all", probe_radius=self.probe_radius)
+            # No skin: flying chips move more than half of it between nearly every two updates (373 of 400 on an
+            # H200), so its kept decisions are dropped before they are read (lamp share 47.5% with it, 45.3% without).
+            opts.update(surfaces="all", probe_radius=self.probe_radius, skin=False)
         if self.base == "wall":
             # The slab's base as the lamp's wall, in the lamp's coordinates (the DEM frame), normal into the fluid.
             opts["walls"] = [((0.0, 0.0, self.z_base - self.frame_center[2]), (0.0, 0.0, 1.0))]

@@ -210,11 +210,11 @@ def test_skin_too_large_is_caught(device):
 
 
 def test_skin_in_shining_lamp(device):
-    """ShiningLamp keeps decisions with skin=True (by default on the CPU only; skin=False turns it off) with the same
-    forces at every update."""
+    """ShiningLamp keeps decisions by default (skin=True too; skin=False turns it off) with the same forces at every
+    update."""
     scene, grid = cavity_scene()
     auto = wl.ShiningLamp(grid, surfaces="all", probe_radius=RHO, device=device)
-    assert (auto.estimator.surface.skin > 0.0) == (not wp.get_device(device).is_cuda)
+    assert auto.estimator.surface.skin > 0.0
     on = wl.ShiningLamp(grid, surfaces="all", probe_radius=RHO, device=device, skin=True)
     off = wl.ShiningLamp(grid, surfaces="all", probe_radius=RHO, device=device, skin=False)
     assert on.estimator.surface.skin == pytest.approx(0.1 * H) and off.estimator.surface.skin == 0.0

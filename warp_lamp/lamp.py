@@ -222,9 +222,7 @@ class LampOptions:
                 probe_radius=check_probe_radius(self.probe_radius),
                 max_rounds=self.max_rounds,
                 max_bytes=self.max_bytes,
-                # "auto": on the CPU only. On CUDA the kept decisions cost more than they save (H200: the specimen
-                # at rest 3.11 ms against 2.40 from scratch; bench/NOTES.md), on the CPU they save a third at rest.
-                skin="auto" if self.skin is True or (self.skin == "auto" and not frame.device.is_cuda) else None,
+                skin="auto" if self.skin is not False else None,
             )
         shared = dict(split=self.split, order=self.order, max_bytes=self.max_bytes)
         if self.criterion == "area":
@@ -381,8 +379,8 @@ class ShiningLamp:
             skin: ``surfaces="all"``: keep the exact test's decisions between updates (dry ones while the particles
                 move less than a tenth of a cell, wet ones while the candidate that found them holds, crossing
                 owners while they lead; ``WettedSurface(skin="auto")``); the results are bitwise the same without
-                it. ``"auto"`` (default): on for CPU devices, off on CUDA, where it measured slower (an H200: the
-                SphereTest specimen at rest 3.11 ms against 2.40 from scratch); True or False forces it.
+                it. ``"auto"`` (default) or True: on; False: off, for runs where particles outrun the skin between
+                most updates (a cut throwing chips: there it costs a little, `bench/NOTES.md`).
         """
         device = resolve_device(device)
         #: What ``tolerance=`` chose (None without it).

@@ -48,10 +48,11 @@ def main() -> int:
     base = rc.TINY if args.tiny else rc.STUDY
     cfg = dataclasses.replace(base, cycles_per_d=args.cycles_per_d, ramp_cycles=args.ramp, settle_cycles=0)
     test = rc.RockCutting(cfg, pressure=args.pressure_mpa * 1e6, surfaces="all", device=device)
-    # The skin forced on (its default is off on CUDA), against a lamp without it.
-    test.lamp = wl.ShiningLamp(test.grid, follow=True, device=device, skin=True, **test.lamp_options())
+    # The skin forced on (the example turns it off), against a lamp without it.
+    opts = {k: v for k, v in test.lamp_options().items() if k != "skin"}
+    test.lamp = wl.ShiningLamp(test.grid, follow=True, device=device, skin=True, **opts)
     test.lamp.reserve(test.n)
-    ref = wl.ShiningLamp(test.grid, follow=True, device=device, skin=False, **test.lamp_options())
+    ref = wl.ShiningLamp(test.grid, follow=True, device=device, skin=False, **opts)
     ref.reserve(test.n)
     skinned = test.lamp.update
     rows = []

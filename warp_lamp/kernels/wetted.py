@@ -1971,11 +1971,15 @@ def witness_margin(
             for bx in range(span.lo[0], span.hi[0] + 1):
                 q = bin_head(bx, by, bz, box, heads)
                 while q >= 0:
-                    if q != i and q != j and q != k:
-                        big = wp.float64(radii[q]) + box.rho
-                        cq = centre_of(q, positions)
-                        v = z - cq
-                        free = wp.min(free, wp.sqrt(dot3(v, v)) - big)
+                    big = wp.float64(radii[q]) + box.rho
+                    cq = centre_of(q, positions)
+                    v = z - cq
+                    d2 = dot3(v, v)
+                    # Every corner is within the diagonal of z: a ball this far keeps the cap from z and every
+                    # segment, and changes no minimum (most of the walk's spheres).
+                    far = (big + box.diag + cap) * (wp.float64(1.0) + SLACK)
+                    if q != i and q != j and q != k and d2 < far * far:
+                        free = wp.min(free, wp.sqrt(d2) - big)
                         for c in range(8):
                             if ((usable >> c) & 1) != 0:
                                 y = lattice_point(cube_corner(lo, c), box)
