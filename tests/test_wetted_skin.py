@@ -330,3 +330,23 @@ def test_witness_margin_lie_is_caught(device):
     mg["m"] = np.where(mg["corner"] >= 0, 1.0e3, mg["m"])  # the lie
     s._wit_margins.assign(mg)
     assert differs_within_skin(s, fresh, scene, grid, device, tries=6)
+
+
+def test_forget_runs_the_next_update_cold(device):
+    """After ``forget`` (benchmarks' cold start) the next update takes a new reference, keeps nothing and answers the
+    same; the one after it keeps decisions again."""
+    scene, grid = cavity_scene()
+    lamp = wl.ShiningLamp(grid, surfaces="all", probe_radius=RHO, device=device)
+    pos = wp.array(scene.centers.astype(np.float32), dtype=wp.vec3, device=device)
+    rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
+    lamp.update(pos, rad)
+    first = lamp.forces_numpy(1.0)
+    lamp.update(pos, rad)
+    assert lamp.diagnostics().skin_held > 0
+    lamp.forget()
+    lamp.update(pos, rad)
+    cold = lamp.diagnostics()
+    assert cold.skin_reset and cold.skin_kept == 0 and cold.skin_witnessed == 0 and cold.skin_resets == 2
+    np.testing.assert_array_equal(lamp.forces_numpy(1.0), first)
+    lamp.update(pos, rad)
+    assert lamp.diagnostics().skin_held > 0

@@ -716,6 +716,10 @@ class WettedCrossings(Estimator):
         self.n = inp.n
         self.launch_wetted()
 
+    def forget(self) -> None:
+        """Drop the skin's kept decisions, so that the next update runs cold (benchmarks; the result is the same)."""
+        self.surface.forget()
+
     def launch_wetted(self) -> None:
         """The one step: frame positions, then rasterise, connect, dilate and cross (``WettedSurface``)."""
         inp = self._input

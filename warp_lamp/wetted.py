@@ -735,6 +735,16 @@ class WettedSurface:
         self._ref_act = wp.zeros(0, dtype=wp.int32, device=d)
         self.n = 0
 
+    def forget(self) -> None:
+        """Drop every decision the skin keeps (the next update takes a new reference and runs as from scratch), for
+        benchmarks that time cold updates at fixed positions; results are the same. Without the skin: nothing."""
+        if self.skin:
+            # Unprimed: the next update takes a new reference and wipes the witness table (the reference count,
+            # which dates the margins, goes on).
+            state = self._skin_state.numpy()
+            state[KB.SKIN_PRIMED] = 0
+            self._skin_state.assign(state)
+
     def _exact_queue(self, capacity: int, threads: int | None = None) -> None:
         """Queue up to ``capacity`` exact tests (0: none) for ``threads`` threads (None: :func:`queued_threads`'s
         rule); the tests and the benchmark's A/B set them on either device. The answer is the same."""

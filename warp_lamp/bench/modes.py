@@ -440,7 +440,8 @@ def section_wetted(
     rows = []
     for scene, grid, label, rho, reps in jobs:
         for surfaces in ("first", "all"):
-            options = {"surfaces": "all", "probe_radius": rho} if surfaces == "all" else {}
+            # From scratch: replays at fixed positions would time the skin's kept decisions at rest.
+            options = {"surfaces": "all", "probe_radius": rho, "skin": False} if surfaces == "all" else {}
             lamp = ShiningLamp(grid, device=device, **options)
             row = {"device": device.alias, "scene": scene.name, "n": scene.n, "grid": label, "surfaces": surfaces}
             row.update(rho=rho if surfaces == "all" else None, cells=grid.n_cells)
