@@ -1,0 +1,39 @@
+"""Build the lease's kernel cache on the dev machine: warp_lamp's kernel modules compiled ahead of time for sm_90,
+as both cubin and PTX, into Warp's cache (``WARP_CACHE_PATH``), to carry as ``.wcache``.
+
+Both, because which one Warp loads depends on the lent host: where its driver is older than Warp's CUDA toolkit
+(the H200 hosts of 2026-11-28: driver 13.0, toolkit 13.4) Warp loads PTX and ignores a cubin, and a module found
+without its PTX is compiled on the device (about 2 minutes for ``kernels.wetted``, at once in every test worker).
+
+    WARP_CACHE_PATH=$PWD/.wcache PYTHONPATH=$PWD python bench/gpu/aot_cache.py            # every module
+    WARP_CACHE_PATH=$PWD/.wcache PYTHONPATH=$PWD python bench/gpu/aot_cache.py wetted     # the named ones
+"""
+
+import argparse
+import importlib
+import pkgutil
+import time
+
+import warp as wp
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("modules", nargs="*", help="names under warp_lamp.kernels (default: all)")
+    ap.add_argument("--arch", type=int, default=90)
+    args = ap.parse_args()
+    wp.config.quiet = True
+    wp.init()
+    import warp_lamp.kernels as kernels
+
+    names = args.modules or [m.name for m in pkgutil.iter_modules(kernels.__path__)]
+    for name in names:
+        mod = importlib.import_module(f"warp_lamp.kernels.{name}")
+        t = time.perf_counter()
+        for ptx in (False, True):
+            wp.compile_aot_module(mod, arch=args.arch, use_ptx=ptx)
+        print(f"{name}: cubin and PTX for sm_{args.arch} in {time.perf_counter() - t:.1f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
