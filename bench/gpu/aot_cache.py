@@ -30,8 +30,14 @@ def main():
     for name in names:
         mod = importlib.import_module(f"warp_lamp.kernels.{name}")
         t = time.perf_counter()
-        for ptx in (False, True):
-            wp.compile_aot_module(mod, arch=args.arch, use_ptx=ptx)
+        try:
+            for ptx in (False, True):
+                wp.compile_aot_module(mod, arch=args.arch, use_ptx=ptx)
+        except RuntimeError as e:
+            if "No compilable kernels" not in str(e):
+                raise
+            print(f"{name}: functions only, compiled into the modules that use them", flush=True)
+            continue
         print(f"{name}: cubin and PTX for sm_{args.arch} in {time.perf_counter() - t:.1f} s", flush=True)
 
 
