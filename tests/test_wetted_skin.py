@@ -350,3 +350,44 @@ def test_forget_runs_the_next_update_cold(device):
     np.testing.assert_array_equal(lamp.forces_numpy(1.0), first)
     lamp.update(pos, rad)
     assert lamp.diagnostics().skin_held > 0
+
+
+def test_skin_bitwise_on_random_runs(device):
+    """Random polydisperse and jittered-lattice bodies, probe radii from 0.1 to 0.8 diameters, a tilted wall in some,
+    CUDA's queued layout in half: over random moves (drifts of 0.05 to 0.6 skins, jumps, spheres switched off and
+    on, rests) every update equals a fresh one, and the skin's margins, certificates and owners are all used."""
+    rng = np.random.default_rng(17)
+    used = np.zeros(3, dtype=np.int64)
+    for run in range(12):
+        if run % 2:
+            m = int(rng.integers(3, 5))
+            c = np.stack(np.meshgrid(*[np.arange(m)] * 3, indexing="ij"), -1).reshape(-1, 3).astype(float)
+            c += rng.uniform(-1, 1, c.shape) * 10.0 ** rng.uniform(-5, -1)
+            r = np.full(len(c), 0.5)
+        else:
+            c = rng.uniform(0, 3, (int(rng.integers(30, 90)), 3))
+            r = rng.uniform(0.25, 0.55, len(c))
+        rho = float(rng.choice([0.1, 0.3, 0.5, 0.8]) * 2 * r.mean())
+        grid = wl.LampGrid(c.min(0) - r.max() - 0.6, c.max(0) + r.max() + 0.6, rng.uniform(0.14, 0.26))
+        walls = [(tuple(c.mean(0) + rng.uniform(-1, 1, 3)), tuple(rng.normal(size=3)))] if run % 3 == 2 else None
+        skinned = WettedSurface(grid, probe_radius=rho, device=device, walls=walls, skin="auto")
+        fresh = WettedSurface(grid, probe_radius=rho, device=device, walls=walls)
+        if run % 4 >= 2:
+            skinned._exact_queue(exact_queue_capacity(skinned.shape, None), 5)
+            skinned._bits = 4
+        active = np.ones(len(r), dtype=np.int32)
+        for step in range(8):
+            move = rng.integers(4) if step else 3
+            if move == 0:
+                c = c + rng.uniform(-1, 1, c.shape) * rng.uniform(0.05, 0.6) * skinned.skin / np.sqrt(3.0)
+            elif move == 1:
+                c[rng.integers(len(r))] += rng.normal(scale=r.mean(), size=3)
+            elif move == 2:
+                active[rng.integers(len(r))] ^= 1
+            pos, rad, act = upload(c, r, grid, device, active)
+            skinned.update(pos, rad, act)
+            fresh.update(pos, rad, act)
+            assert_same(state(skinned), state(fresh), (run, step))
+            d = skinned.diagnostics()
+            used += [d.skin_kept, d.skin_held, d.skin_cross_kept]
+    assert (used > 0).all(), used
