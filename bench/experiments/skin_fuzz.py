@@ -1,11 +1,11 @@
 """Fuzz (CPU): the skin against from-scratch updates over random DEM-like runs, bitwise at every step.
 
-Random scenes as ``wetted_fuzz_knobs.py`` draws them (polydisperse spheres, jittered lattices, bodies touching the
-box's edge, anisotropic voxels, probe radii 0.05 to 0.8 diameters, a tilted wall in 30%), then 6 to 14 steps of
-moves drawn per step from: every sphere a random step of 0.02 to 0.6 skins, a few spheres jumping a radius, a
-sphere switched off or on, nothing at all; the skinned surface (default skin, the exact tests queued for some
-threads in half the runs: CUDA's layout) is compared with a fresh one after every step (fluid words, counts, hits).
-Counts how often each kind of kept decision was used. Arguments: seed, seconds.
+Random scenes from ``wetted_fuzz_knobs.draw_scene`` (polydisperse spheres, jittered lattices, bodies touching the
+box's edge, anisotropic voxels, probe radii 0.05 to 0.8 diameters, a tilted wall in 30%; half a unit more margin
+here), then 6 to 14 steps of moves drawn per step from: every sphere a random step of 0.02 to 0.6 skins, a few
+spheres jumping a radius, a sphere switched off or on, nothing at all; the skinned surface (default skin, the exact
+tests queued for some threads in half the runs: CUDA's layout) is compared with a fresh one after every step (fluid
+words, counts, hits). Counts how often each kind of kept decision was used. Arguments: seed, seconds.
 
     PYTHONPATH=$PWD python bench/experiments/skin_fuzz.py 3 600
 """
@@ -15,30 +15,11 @@ import time
 
 import numpy as np
 import warp as wp
+from wetted_fuzz_knobs import draw_scene  # this folder: the same random scenes
 
-import warp_lamp as wl
-from warp_lamp.validate import check_walls
 from warp_lamp.wetted import WettedSurface, cross_list_capacity, exact_queue_capacity
 
 wp.config.quiet = True
-
-
-def scene(rng):
-    kind = rng.integers(3)
-    if kind == 0:
-        n = int(rng.integers(40, 160))
-        c = rng.uniform(0, 4, (n, 3))
-        r = rng.uniform(0.2, 0.6, n)
-    elif kind == 1:
-        m = int(rng.integers(3, 6))
-        idx = np.stack(np.meshgrid(*[np.arange(m)] * 3, indexing="ij"), -1).reshape(-1, 3).astype(float)
-        c = idx + rng.uniform(-1, 1, idx.shape) * 10.0 ** rng.uniform(-6, -1)
-        r = np.full(len(c), 0.5)
-    else:
-        n = int(rng.integers(20, 80))
-        c = rng.uniform(0, 2, (n, 3))
-        r = rng.uniform(0.3, 0.5, n)
-    return c, r
 
 
 def main():
@@ -47,15 +28,7 @@ def main():
     runs = steps = bad = 0
     used = {"kept": 0, "held": 0, "witnessed": 0, "cross_kept": 0, "resets": 0}
     while time.time() < t_end:
-        c, r = scene(rng)
-        h = rng.uniform(0.12, 0.3, 3) if rng.random() < 0.5 else np.full(3, rng.uniform(0.12, 0.3))
-        rho = float(rng.choice([0.05, 0.15, 0.3, 0.5, 0.8]) * r.mean() * 2)
-        margin = float(rng.choice([0.0, 0.3, 1.0]))
-        pad = r.max() + margin + 0.5
-        grid = wl.LampGrid(c.min(0) - pad, c.max(0) + pad, h)
-        walls = None
-        if rng.random() < 0.3:
-            walls = check_walls([(tuple(c.mean(0) + rng.uniform(-1, 1, 3)), tuple(rng.normal(size=3)))])
+        _kind, c, r, h, rho, _margin, grid, walls = draw_scene(rng, extra=0.5)
         skinned = WettedSurface(grid, probe_radius=rho, device="cpu", walls=walls, skin="auto")
         fresh = WettedSurface(grid, probe_radius=rho, device="cpu", walls=walls)
         if rng.random() < 0.5:
