@@ -41,7 +41,7 @@ __all__ = [
 #: Candidate settings: (criterion, resolver, depth_slots, subpoints, cells per diameter, gather); the table's rows in
 #: this order.
 SETTINGS = (
-    *[(1, None, None, None, k, None) for k in (2, 3, 4, 6, 8, 12, 16, 24, 32)],
+    *[(1, None, None, None, k, None) for k in (2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64)],
     *[("area", "subpoints", 3, 8, k, "front") for k in (2, 3, 4)],
     *[("area", "subpoints", 2, 4, k, "front") for k in (2, 3, 4)],
     *[("area", "exact", d, None, k, "front") for d in (3, 4) for k in (2, 3, 4)],
@@ -95,9 +95,9 @@ def setting_error(scene: Scene, options: dict, cells_per_diameter: float, device
     return visible_area_error(lamp.forces_numpy(P), exact, P, float(scene.radii.mean()))["rms"]
 
 
-def _times(device, repeats: int, timing_scene: Scene) -> list[float]:
+def _times(device, repeats: int, timing_scene: Scene, settings=SETTINGS) -> list[float]:
     out = []
-    for criterion, resolver, slots, s, k, gather in SETTINGS:
+    for criterion, resolver, slots, s, k, gather in settings:
         lamp = _lamp(timing_scene, _options(criterion, resolver, slots, s, gather), k, device)
         out.append(time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"])
     return out
@@ -173,10 +173,33 @@ def complete_table(table: dict, device="cpu", *, repeats: int = 5, errors_device
     return table
 
 
-def merge_kind(table: dict, device, *, repeats: int = 5) -> dict:
-    """Time every setting on ``device`` and add its kind's times and ratios to ``table`` (in place)."""
+def merge_kind(table: dict, device, *, repeats: int = 5, missing_only: bool = False) -> dict:
+    """Time every setting on ``device`` and add its kind's times and ratios to ``table`` (in place).
+
+    With ``missing_only``, time only the rows that lack this kind (rows :func:`complete_table` added on another
+    device), over criterion 1 at 4 cells per diameter timed again in the same run; the kind's other rows keep their
+    times, and the run's header goes under ``table["completed"][kind]``.
+    """
     kind = _kind_of(device)
-    times = _times(device, repeats, scene_sphere_specimen())
+    scene = scene_sphere_specimen()
+    if missing_only:
+        have = {_row_setting(r): r for r in table["rows"]}
+        base_setting = next(s for s in SETTINGS if s[0] == 1 and s[4] == 4)
+        rows = [r for r in table["rows"] if kind not in r.get("ratio", {})]
+        settings = [base_setting, *(_row_setting(r) for r in rows)]
+        times = _times(device, repeats, scene, settings)
+        for row, t in zip(rows, times[1:], strict=True):
+            row.setdefault("time_s", {})[kind] = t
+            row.setdefault("ratio", {})[kind] = t / times[0]
+        if rows:
+            table.setdefault("completed", {})[kind] = {
+                **run_header([device]),
+                "rows": len(rows),
+                "base_s": times[0],
+                "base_s_table": have[base_setting].get("time_s", {}).get(kind),
+            }
+        return table
+    times = _times(device, repeats, scene)
     base = next(t for t, s in zip(times, SETTINGS, strict=True) if s[0] == 1 and s[4] == 4)
     for row, t in zip(table["rows"], times, strict=True):
         row.setdefault("time_s", {})[kind] = t
@@ -218,6 +241,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", help="write the table (JSON) here")
     ap.add_argument("--merge", help="an existing table: add this device's times to it (with --times-only)")
     ap.add_argument("--times-only", action="store_true")
+    ap.add_argument(
+        "--missing", action="store_true", help="with --times-only: time only the rows without this device's kind"
+    )
     ap.add_argument("--check", metavar="TABLE", help="check a table's choices on this device")
     ap.add_argument("--complete", metavar="TABLE", help="add the settings a table lacks (errors, this device's times)")
     args = ap.parse_args(argv)
@@ -244,7 +270,7 @@ def main(argv=None) -> int:
         if not args.merge:
             ap.error("--times-only needs --merge TABLE")
         with open(args.merge, encoding="utf-8") as f:
-            table = merge_kind(json.load(f), args.device, repeats=args.repeats)
+            table = merge_kind(json.load(f), args.device, repeats=args.repeats, missing_only=args.missing)
     if not (args.complete or args.times_only):
         table = measure_table(args.device, repeats=args.repeats)
     if args.out:
