@@ -1,7 +1,9 @@
 """Per-kernel GPU times of one wetted update (Warp's CUDA activity timing, eager updates, median over repeats), for
-the bench's scenes at rho = r-bar; variants: the thin chords' list at CUDA's size or off (the walking kernel alone).
+the bench's scenes at rho = r-bar; variants: the thin chords' list at CUDA's size or off (the walking kernel alone),
+and the skin off or on (with it, the update timed is one at rest: the same positions as the reference's).
 
     python bench/experiments/kernel_times.py --device cuda:0 --only lattice --thin-list 1 0 --out kt.json
+    python bench/experiments/kernel_times.py --device cuda:0 --only specimen slot --skin 0 1
 """
 
 import argparse
@@ -41,12 +43,12 @@ def print_top(kernels_ms: dict, most: int = 12) -> None:
         print(f"   {k[:44]:44s} {v:9.4f} ms")
 
 
-def kernel_times(name, scene, cell, device, repeats, thin_list):
+def kernel_times(name, scene, cell, device, repeats, thin_list, skin=0):
     rho = float(scene.radii.mean())
     grid = grid_for(scene, cell, rho)
     pos = wp.array((scene.centers - grid.origin).astype(np.float32), dtype=wp.vec3, device=device)
     rad = wp.array(scene.radii.astype(np.float32), dtype=wp.float32, device=device)
-    surf = WettedSurface(grid, probe_radius=rho, device=device)
+    surf = WettedSurface(grid, probe_radius=rho, device=device, skin="auto" if skin else False)
     if thin_list == 0:
         surf._thin_list(0)
     surf.update(pos, rad)
@@ -56,6 +58,9 @@ def kernel_times(name, scene, cell, device, repeats, thin_list):
     return {
         "scene": scene.name,
         "thin_list": thin_list,
+        "skin": skin,
+        "skin_kept": d.skin_kept,
+        "skin_held": d.skin_held,
         "thin": d.thin,
         "thin_listed": getattr(d, "thin_listed", None),
         "uncertain": d.uncertain,
@@ -68,6 +73,7 @@ def main():
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--only", nargs="*", default=None)
     ap.add_argument("--thin-list", nargs="*", type=int, default=[1])
+    ap.add_argument("--skin", nargs="*", type=int, default=[0])
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--quick", action="store_true", help="small stand-in scenes (a CPU check of the script)")
     ap.add_argument("--out", default=None)
@@ -79,9 +85,13 @@ def main():
         if args.only and name not in args.only:
             continue
         for tl in args.thin_list:
-            row = kernel_times(name, scene, cell, device, args.repeats, tl)
-            out["rows"].append(row)
-            print(f"== {scene.name} thin list {tl}: thin {row['thin']}, listed {row['thin_listed']}")
+            for sk in args.skin:
+                row = kernel_times(name, scene, cell, device, args.repeats, tl, sk)
+                out["rows"].append(row)
+                print(
+                    f"== {scene.name} thin list {tl} skin {sk}: thin {row['thin']}, listed {row['thin_listed']}, "
+                    f"uncertain {row['uncertain']}, kept {row['skin_kept']}, held {row['skin_held']}"
+                )
             print_top(row["kernels_ms"])
             sys.stdout.flush()
     if args.out:
