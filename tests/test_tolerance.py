@@ -104,3 +104,26 @@ def test_a_deep_gather_row_is_chosen_with_its_gather_and_rows_without_a_kind_are
     assert "deep gather" in c.describe()
     untimed = {"kinds": {"cpu": {}}, "rows": [_row(1, 32, 0.006, 12.0), {**deep, "ratio": {"h100": 8.0}}]}
     assert choose_settings(0.01, "cpu", table=untimed, margin=1.2).criterion == 1
+
+
+def test_merge_kind_missing_only_times_just_the_rows_a_kind_lacks(monkeypatch):
+    """With ``missing_only``, only the rows without the device's kind are timed (after criterion 1 at 4, their unit),
+    the kind's other rows keep their times, and the run is recorded under ``completed``."""
+    from warp_lamp.bench import tolerance as bt
+
+    timed = []
+
+    def fake_times(device, repeats, scene, settings=bt.SETTINGS):
+        timed.append(list(settings))
+        return [2.0 * (i + 1) for i in range(len(settings))]
+
+    monkeypatch.setattr(bt, "_times", fake_times)
+    base = {"criterion": 1, "resolver": None, "depth_slots": None, "subpoints": None, "cells_per_diameter": 4}
+    old = {**base, "cells_per_diameter": 32, "time_s": {"cpu": 9.0}, "ratio": {"cpu": 12.0}}
+    new = {**base, "cells_per_diameter": 48, "time_s": {}, "ratio": {}}
+    table = {"kinds": {"cpu": {}}, "rows": [{**base, "time_s": {"cpu": 1.0}, "ratio": {"cpu": 1.0}}, old, new]}
+    bt.merge_kind(table, "cpu", missing_only=True)
+    assert timed == [[(1, None, None, None, 4, None), (1, None, None, None, 48, None)]]
+    assert new["time_s"]["cpu"] == 4.0 and new["ratio"]["cpu"] == 2.0
+    assert old["ratio"]["cpu"] == 12.0 and table["rows"][0]["ratio"]["cpu"] == 1.0
+    assert table["completed"]["cpu"]["rows"] == 1 and table["completed"]["cpu"]["base_s"] == 2.0
