@@ -50,7 +50,7 @@ SETTINGS = (
     *[("area", "exact", 5, None, k, "deep") for k in (3, 4)],
 )
 #: Tolerances the check asks for.
-CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001, 0.0005)
+CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.003, 0.002, 0.001, 0.0005)
 
 
 def table_scenes() -> dict[str, Scene]:
