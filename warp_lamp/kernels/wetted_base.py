@@ -48,6 +48,9 @@ SKIP_VERTICES, SKIP_EDGES, SKIP_FACES, SKIP_PRUNING, SKIP_CANDIDATES = 1, 2, 4, 
 #: Spheres a point's exact test gathers once, for all its candidates' blocker and segment searches: those within
 #: r + 2 rho + diagonal of the point, in bin-walk order; with more it walks the bins for every candidate.
 GATHER = 128
+#: A queue of exact tests shorter than its threads is spread over them, at most this many threads apart (one test to
+#: a warp): in slot order a short queue sat in a few blocks, 32 diverging tests to a warp, while most SMs idled.
+QUEUE_SPREAD = 32
 GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
 #: Near spheres (after pruning) for which the exact test keeps a mask of the reached lattice points near x that a
 #: candidate on each could have as a corner; with more, or more than 64 such points, every candidate is tried.
