@@ -1020,24 +1020,13 @@ class WettedSurface:
             ],
             device=d,
         )
+        # What the queued tests and the margins search: the particles, the box and its walls, the reach, the bins.
+        searched = [positions, radii, box, walls, self.reach, self.heads, self.next_in_bin, self.rmax, self.exposed]
         if self._capacity > 0:
             wp.launch(
                 K.wet_classify_queued,
                 dim=self._gathered.shape[0] // KB.GATHER,
-                inputs=[
-                    positions,
-                    radii,
-                    box,
-                    walls,
-                    self.reach,
-                    self.heads,
-                    self.next_in_bin,
-                    self.rmax,
-                    self.exposed,
-                    self.queue,
-                    self.skin,
-                    n,
-                ],
+                inputs=[*searched, self.queue, self.skin, n],
                 outputs=[
                     self.queued,
                     self._gathered,
@@ -1057,22 +1046,7 @@ class WettedSurface:
             wp.launch(
                 K.wet_skin_margins,
                 dim=self._wit_keys.shape[0],
-                inputs=[
-                    positions,
-                    radii,
-                    box,
-                    walls,
-                    self.reach,
-                    self.heads,
-                    self.next_in_bin,
-                    self.rmax,
-                    self.exposed,
-                    self.skin,
-                    n,
-                    self._wit_keys,
-                    self._wits,
-                    self._skin_state,
-                ],
+                inputs=[*searched, self.skin, n, self._wit_keys, self._wits, self._skin_state],
                 outputs=[self._wit_margins],
                 device=d,
             )

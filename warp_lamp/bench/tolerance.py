@@ -30,6 +30,7 @@ from warp_lamp.tolerance import LampChoice, choose_settings, device_kind
 
 __all__ = [
     "SETTINGS",
+    "UNIT",
     "check_tolerance",
     "complete_table",
     "held_out_scene",
@@ -49,6 +50,8 @@ SETTINGS = (
     *[("area", "exact", 4, None, k, "deep") for k in (3, 4)],
     *[("area", "exact", 5, None, k, "deep") for k in (3, 4)],
 )
+#: The table's unit: criterion 1 at 4 cells per diameter (every ratio is a time over its time on the same kind).
+UNIT = (1, None, None, None, 4, None)
 #: Tolerances the check asks for.
 CHECK_TOLERANCES = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.003, 0.002, 0.001, 0.0005)
 
@@ -162,7 +165,7 @@ def complete_table(table: dict, device="cpu", *, repeats: int = 5, errors_device
         lamp = _lamp(timing_scene, _options(criterion, resolver, slots, sp, gather), k, device)
         return time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"]
 
-    base = time_of(next(s for s in SETTINGS if s[0] == 1 and s[4] == 4))
+    base = time_of(UNIT)
     for setting in missing:
         row = setting_row(setting, scenes, errors_device)
         t = time_of(setting)
@@ -183,28 +186,28 @@ def merge_kind(table: dict, device, *, repeats: int = 5, missing_only: bool = Fa
     kind = _kind_of(device)
     scene = scene_sphere_specimen()
     if missing_only:
-        have = {_row_setting(r): r for r in table["rows"]}
-        base_setting = next(s for s in SETTINGS if s[0] == 1 and s[4] == 4)
         rows = [r for r in table["rows"] if kind not in r.get("ratio", {})]
-        settings = [base_setting, *(_row_setting(r) for r in rows)]
-        times = _times(device, repeats, scene, settings)
-        for row, t in zip(rows, times[1:], strict=True):
-            row.setdefault("time_s", {})[kind] = t
-            row.setdefault("ratio", {})[kind] = t / times[0]
-        if rows:
-            table.setdefault("completed", {})[kind] = {
-                **run_header([device]),
-                "rows": len(rows),
-                "base_s": times[0],
-                "base_s_table": have[base_setting].get("time_s", {}).get(kind),
-            }
-        return table
-    times = _times(device, repeats, scene)
-    base = next(t for t, s in zip(times, SETTINGS, strict=True) if s[0] == 1 and s[4] == 4)
-    for row, t in zip(table["rows"], times, strict=True):
+        if not rows:
+            return table
+        times = _times(device, repeats, scene, [UNIT, *(_row_setting(r) for r in rows)])
+        base, times = times[0], times[1:]
+    else:
+        rows = table["rows"]
+        times = _times(device, repeats, scene)
+        base = times[SETTINGS.index(UNIT)]
+    for row, t in zip(rows, times, strict=True):
         row.setdefault("time_s", {})[kind] = t
         row.setdefault("ratio", {})[kind] = t / base
-    table["kinds"][kind] = run_header([device])
+    if missing_only:
+        unit_row = next(r for r in table["rows"] if _row_setting(r) == UNIT)
+        table.setdefault("completed", {})[kind] = {
+            **run_header([device]),
+            "rows": len(rows),
+            "base_s": base,
+            "base_s_table": unit_row.get("time_s", {}).get(kind),
+        }
+    else:
+        table["kinds"][kind] = run_header([device])
     return table
 
 
