@@ -540,7 +540,7 @@ def test_exact_tests_queued_in_voxel_order(device, rng):
 def test_queued_tests_share_threads(device, rng):
     """The queued exact tests give the reference's answer however many threads take them in turn, each with its
     own interleaved row of gathered spheres: 1, 7, 64, 4096 and 32768 threads (more than there are tests: none left
-    to the counter; at 32768, twice and more: spread, every stride-th thread taking one)."""
+    to the counter; at least ``QUEUE_SPREAD_FROM`` times more: spread, every stride-th thread taking one)."""
     centers, radii, grid = exact_scene(rng)
     ref = wetted_reference(centers, radii, grid, probe_radius=0.25)
     surface = wetted_solve(centers, radii, probe_radius=0.25, grid=grid, keep_owners=True, device=device)
@@ -550,8 +550,9 @@ def test_queued_tests_share_threads(device, rng):
         d = assert_matches(surface, ref)
         assert 300 < d.uncertain < 4096
         assert surface._gathered.shape[0] == wl.wetted.KB.GATHER * threads
+        # 32768 threads spread the queue; from 4096 on every test has a first slot and the counter stays unread.
+        assert (threads >= wl.wetted.KB.QUEUE_SPREAD_FROM * d.uncertain) == (threads == 32768)
         assert (int(surface.queued.numpy()[1]) == 0) == (threads >= d.uncertain)
-        assert threads != 32768 or threads >= 2 * d.uncertain  # a stride of 2 or more: spread
 
 
 def test_reach_masks_on_nearly_collinear_triples(device, rng):

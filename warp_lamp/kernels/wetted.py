@@ -53,6 +53,7 @@ from warp_lamp.kernels.wetted_base import (
     MARGIN_PENDING,
     MASK_SPHERES,
     QUEUE_SPREAD,
+    QUEUE_SPREAD_FROM,
     REACH_POINTS,
     REACH_ROWS,
     SKIN_CERTIFIED,
@@ -2461,8 +2462,9 @@ def wet_classify_queued(
     """The queued voxels' exact tests (``wet_classify``), packed into as few threads as fit the GPU at once, where
     ``wet_classify``'s threads are mostly idle: launched for ``scratch``'s rows (``GATHER`` int32 each, interleaved:
     row t's entry k at ``k * rows + t``), thread t tests slot t (slot t / stride for every stride-th thread when the
-    queue is shorter than the threads), then the slots past the first ones one at a time as it finishes
-    (``queued[1]``, zeroed with the count ``queued[0]``, counts those taken), with its gathered list in its row.
+    queue is at least ``QUEUE_SPREAD_FROM`` times shorter than the threads), then the slots past the first ones one
+    at a time as it finishes (``queued[1]``, zeroed with the count ``queued[0]``, counts those taken), with its
+    gathered list in its row.
     The first slot by thread keeps a warp's lanes on neighbouring voxels and the tests spread over the SMs as
     blocks are (slots taken from the counter from the start cost the specimen 10%); the rest as they finish, because
     a fixed share per thread left the GPU waiting on the threads whose share was slowest (the 1M lattice 13% slower
@@ -2475,6 +2477,8 @@ def wet_classify_queued(
     # A queue shorter than the threads is spread, one first slot per `stride` threads: in slot order it sat in a
     # few blocks on a few SMs, 32 diverging tests to a warp (the skin at rest: 1,300 tests on 21 of 132 SMs).
     stride = wp.max(1, wp.min(QUEUE_SPREAD, rows / wp.max(n, 1)))
+    if stride < QUEUE_SPREAD_FROM:
+        stride = 1
     leads = (rows + stride - 1) / stride
     first = int(1)
     while True:
