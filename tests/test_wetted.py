@@ -539,20 +539,22 @@ def test_exact_tests_queued_in_voxel_order(device, rng):
 
 def test_queued_tests_share_threads(device, rng):
     """The queued exact tests give the reference's answer however many threads take them in turn, each with its
-    own interleaved row of gathered spheres: 1, 7, 64, 4096 and 32768 threads (more than there are tests: none left
-    to the counter; at least ``QUEUE_SPREAD_FROM`` times more: spread, every stride-th thread taking one)."""
+    own interleaved row of gathered spheres: 1, 7 and 64 threads, twice as many threads as tests (each test a first
+    slot, not spread) and 32768 (spread: every stride-th thread takes one)."""
     centers, radii, grid = exact_scene(rng)
     ref = wetted_reference(centers, radii, grid, probe_radius=0.25)
     surface = wetted_solve(centers, radii, probe_radius=0.25, grid=grid, keep_owners=True, device=device)
-    for threads in (1, 7, 64, 4096, 32768):
+    tests = surface.diagnostics().uncertain
+    assert 300 < tests < 4096
+    for threads in (1, 7, 64, 2 * tests, 32768):
         surface._exact_queue(1 << 20, threads)
         surface.update(*device_arrays(centers - grid.origin, radii, device))
         d = assert_matches(surface, ref)
-        assert 300 < d.uncertain < 4096
+        assert d.uncertain == tests
         assert surface._gathered.shape[0] == wl.wetted.KB.GATHER * threads
-        # 32768 threads spread the queue; from 4096 on every test has a first slot and the counter stays unread.
-        assert (threads >= wl.wetted.KB.QUEUE_SPREAD_FROM * d.uncertain) == (threads == 32768)
-        assert (int(surface.queued.numpy()[1]) == 0) == (threads >= d.uncertain)
+        # The kernel's rule: spread once the threads are QUEUE_SPREAD_FROM times the tests; only 32768 is.
+        assert (threads >= wl.wetted.KB.QUEUE_SPREAD_FROM * tests) == (threads == 32768)
+        assert (int(surface.queued.numpy()[1]) == 0) == (threads >= tests)
 
 
 def test_reach_masks_on_nearly_collinear_triples(device, rng):

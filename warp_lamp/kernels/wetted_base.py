@@ -51,9 +51,10 @@ GATHER = 128
 #: A queue of exact tests shorter than its threads is spread over them, at most this many threads apart (one test to
 #: a warp): in slot order a short queue sat in a few blocks, 32 diverging tests to a warp, while most SMs idled.
 QUEUE_SPREAD = 32
-#: ... and only from this stride up: from scratch two tests to a warp instead of one cost the specimen 9% of its
-#: classification (neighbouring voxels gather the same spheres), six apart gained nothing (an H200, `bench/NOTES.md`).
-QUEUE_SPREAD_FROM = 8
+#: ... and only from this stride up. On an H200 the specimen's queue from scratch (stride 2) lost 9% of its
+#: classification spread (a warp's neighbouring voxels gather the same spheres; apart they lose it), while its queue
+#: with the skin at rest (stride 3: the voxels kept dry are out of it) gained 18% (`bench/NOTES.md`).
+QUEUE_SPREAD_FROM = 3
 GatherIds = wp.types.vector(length=GATHER, dtype=wp.int32)
 #: Near spheres (after pruning) for which the exact test keeps a mask of the reached lattice points near x that a
 #: candidate on each could have as a corner; with more, or more than 64 such points, every candidate is tried.
