@@ -92,6 +92,7 @@ from warp_lamp.kernels.wetted_base import (
     dot3,
     low_mask,
     lowest_bit,
+    no_margin,
     row_mask,
     span_from,
     table_claim,
@@ -1938,10 +1939,7 @@ def witness_margin(
     outward (``tangent_ok``), the best corner's kept. Every sphere whose ball comes within ``KEEP_CAP`` skins of z
     or of a segment (each within the voxel diagonal of z) is walked; the rest are at least that far, the cap.
     No margin (m = -1) for a cube clamped to the box's surroundings."""
-    out = WitMargin()
-    out.m = wp.float64(-1.0)
-    out.corner = -1
-    out.epoch = epoch
+    out = no_margin(epoch)
     zp = witness_point(x, wit, n, positions, radii, exposed, box)
     if zp[3] == wp.float64(0.0):
         return out
@@ -2123,13 +2121,10 @@ def witness_keep(
     (``wet_skin_margins``) when this update measures, else marked as none."""
     s = witness_store(v, found, keys, wits, skin)
     if s >= 0 and found[0] >= 0:
-        mg = WitMargin()
-        mg.m = wp.float64(-1.0)
-        mg.corner = -1
-        mg.epoch = -1
+        epoch = int(-1)
         if skin_measures(skin):
-            mg.epoch = MARGIN_PENDING
-        margins[s] = mg
+            epoch = MARGIN_PENDING
+        margins[s] = no_margin(epoch)
 
 
 @wp.kernel
@@ -2289,11 +2284,7 @@ def wet_skin_margins(
     v = keys[s]
     wit = wits[s]
     if v < 0 or wit[0] < 0:
-        none = WitMargin()
-        none.m = wp.float64(-1.0)
-        none.corner = -1
-        none.epoch = -1
-        margins[s] = none
+        margins[s] = no_margin(-1)
         return
     idx = v / 32
     x = voxel_point(word_coords(box, idx), v - idx * 32, box)

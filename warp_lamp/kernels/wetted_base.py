@@ -172,6 +172,16 @@ class WitMargin:
 
 
 @wp.func
+def no_margin(epoch: wp.int32) -> WitMargin:
+    """A witness with no margin measured (m = -1, no corner) under reference ``epoch``."""
+    out = WitMargin()
+    out.m = wp.float64(-1.0)
+    out.corner = -1
+    out.epoch = epoch
+    return out
+
+
+@wp.func
 def low_mask(nbits: wp.int32) -> wp.uint32:
     """Bits [0, nbits) set; nbits is clamped to [0, 32]."""
     if nbits >= 32:
