@@ -1,9 +1,12 @@
 """Build the lease's kernel cache on the dev machine: warp_lamp's kernel modules compiled ahead of time for sm_90,
 as both cubin and PTX, into Warp's cache (``WARP_CACHE_PATH``), to carry as ``.wcache``.
 
-Both, because which one Warp loads depends on the lent host: where its driver is older than Warp's CUDA toolkit
-(the H200 hosts of 2026-11-28: driver 13.0, toolkit 13.4) Warp loads PTX and ignores a cubin, and a module found
-without its PTX is compiled on the device (about 2 minutes for ``kernels.wetted``, at once in every test worker).
+Both, because which one Warp loads depends on the lent host: Warp 1.19 builds PTX where the driver is at least its
+CUDA toolkit and a cubin where the driver is older (``Device.get_cuda_output_format``), and looks only for that file
+(``<module>.sm90.cubin`` or ``.sm90.ptx``). The H200 hosts run driver 13.0 under Warp's toolkit 13.4, so by that
+code they load the cubin. Yet a lease of 2026-11-28 compiled ``kernels.wetted`` on the device with only its cubin
+carried, and one of 2026-11-29 compiled it (205 s, the lease lost to it) with only its PTX. A module found without the
+file it wants is compiled there, in every process that loads it. Carry both.
 
     WARP_CACHE_PATH=$PWD/.wcache PYTHONPATH=$PWD python bench/gpu/aot_cache.py            # every module
     WARP_CACHE_PATH=$PWD/.wcache PYTHONPATH=$PWD python bench/gpu/aot_cache.py wetted     # the named ones

@@ -4,7 +4,7 @@
 # files, and what a killed command left under $OUT still comes back):
 #   LEASE_SECONDS=560 bash bench/gpu/multi.sh "cuda_tests_1 wetted32" "cuda_tests_2 area33" "deme38" "-"
 # A list "-" leaves that GPU idle. lease.sh gives each part the time left before the deadline, at most PART_TIMEOUT.
-# Kernel cache: bench/gpu/aot_cache.py builds .wcache (cubin and PTX: the lent hosts load PTX).
+# Kernel cache: bench/gpu/aot_cache.py builds .wcache (cubin and PTX; the H200 hosts load the cubin: carry both).
 # Staging: run stage-warp's three steps as three calls, step 3 alone, then this in a fourth call carrying .wcache and
 # the trees (step 3's .w3 and a full .wcache together pass the device tool's 64 MiB carry limit); the machine is
 # released 30 s after a call, so make the calls back to back.
