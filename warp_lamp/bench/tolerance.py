@@ -158,17 +158,9 @@ def complete_table(table: dict, device="cpu", *, repeats: int = 5, errors_device
         return table
     scenes = table_scenes()
     kind = _kind_of(device)
-    timing_scene = scene_sphere_specimen()
-
-    def time_of(setting) -> float:
-        criterion, resolver, slots, sp, k, gather = setting
-        lamp = _lamp(timing_scene, _options(criterion, resolver, slots, sp, gather), k, device)
-        return time_update(lamp, timing_scene, device, repeats=repeats, moving=False)["update_s"]
-
-    base = time_of(UNIT)
-    for setting in missing:
+    base, *times = _times(device, repeats, scene_sphere_specimen(), [UNIT, *missing])
+    for setting, t in zip(missing, times, strict=True):
         row = setting_row(setting, scenes, errors_device)
-        t = time_of(setting)
         row["time_s"] = {kind: t}
         row["ratio"] = {kind: t / base}
         have[setting] = row
@@ -189,8 +181,7 @@ def merge_kind(table: dict, device, *, repeats: int = 5, missing_only: bool = Fa
         rows = [r for r in table["rows"] if kind not in r.get("ratio", {})]
         if not rows:
             return table
-        times = _times(device, repeats, scene, [UNIT, *(_row_setting(r) for r in rows)])
-        base, times = times[0], times[1:]
+        base, *times = _times(device, repeats, scene, [UNIT, *(_row_setting(r) for r in rows)])
     else:
         rows = table["rows"]
         times = _times(device, repeats, scene)
